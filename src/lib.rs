@@ -1,0 +1,43 @@
+//! # echoloc
+//!
+//! `no_std` firmware library for the microcontroller that drives a mobile
+//! robot's sonar ring. It predicts what every transducer should read from the
+//! robot's pose and a polygon map, rates each prediction, compares it with the
+//! real echo, and corrects the pose (Allen et al., *Autonomous Mobile Robot
+//! Self-Referencing with Sensor Windows and Neural Networks*).
+//!
+//! This release holds the foundation every later part stands on:
+//!
+//! | module | what it does |
+//! |---|---|
+//! | [`geometry`] | integer-millimetre points, exact `i64` predicates, convex pieces, convex splitting |
+//! | [`tvector`] | the paper's t-vectors: edge-side bit masks, front surfaces, segment–piece collision |
+//! | [`buffer`] | C-space buffers: a piece grown conservatively by `t_b` |
+//! | [`map`] | the fixed-capacity obstacle map, its uniform grid index and its binary blob |
+//!
+//! Every geometric *decision* is exact integer arithmetic; there is no
+//! allocator and no float on these paths.
+//!
+//! ```
+//! use echoloc::geometry::{Point, Segment};
+//! use echoloc::map::{Map, ObstacleKind};
+//!
+//! // A 1 m square box and a wall, grown by a 100 mm C-space buffer.
+//! let mut map: Map<64, 1024, 256, 1024> = Map::new();
+//! let square = [Point::new(0, 0), Point::new(1000, 0), Point::new(1000, 1000), Point::new(0, 1000)];
+//! map.add_obstacle(ObstacleKind::Solid, &[&square[..]]).unwrap();
+//! map.add_obstacle(ObstacleKind::Wall, &[&[Point::new(2000, 0), Point::new(2000, 3000)][..]]).unwrap();
+//! map.finish(100, 500).unwrap();
+//!
+//! let ray = Segment::new(Point::new(-500, 500), Point::new(3000, 500));
+//! let first = map.first_hit(ray).unwrap();
+//! assert_eq!(first.obstacle, 0); // the box is hit before the wall
+//! ```
+#![no_std]
+#![deny(unsafe_code)]
+#![warn(missing_docs)]
+
+pub mod buffer;
+pub mod geometry;
+pub mod map;
+pub mod tvector;
