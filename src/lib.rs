@@ -30,7 +30,7 @@
 //! map.finish(100, 500).unwrap();
 //!
 //! let ray = Segment::new(Point::new(-500, 500), Point::new(3000, 500));
-//! let first = map.first_hit(ray).unwrap();
+//! let first = map.first_hit(ray).unwrap().expect("the ray meets the box");
 //! assert_eq!(first.obstacle, 0); // the box is hit before the wall
 //! ```
 #![no_std]

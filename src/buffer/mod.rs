@@ -115,11 +115,7 @@ pub fn grow(piece: Convex<'_>, t_b: u32) -> Result<Buffered, BufferError> {
     let q = octagon(t_b);
     // Minkowski sum of convex polygons: start at both lowest-leftmost
     // vertices and merge the edge sequences by polar angle (exact compare).
-    let start = |v: &[Point]| {
-        (0..v.len())
-            .min_by_key(|&i| (v[i].y, v[i].x))
-            .unwrap_or(0)
-    };
+    let start = |v: &[Point]| (0..v.len()).min_by_key(|&i| (v[i].y, v[i].x)).unwrap_or(0);
     let (n, m) = (p.len(), q.len());
     let (sp, sq) = (start(p), 0);
     let (mut i, mut j) = (0usize, 0usize);

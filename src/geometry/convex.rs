@@ -139,9 +139,7 @@ impl<'a> Convex<'a> {
     pub fn area2(&self) -> i64 {
         let n = self.verts.len();
         let o = self.verts[0];
-        (1..n.saturating_sub(1))
-            .map(|i| orient(o, self.verts[i], self.verts[i + 1]))
-            .sum()
+        (1..n.saturating_sub(1)).map(|i| orient(o, self.verts[i], self.verts[i + 1])).sum()
     }
 
     /// Bounding box.

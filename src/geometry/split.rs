@@ -171,7 +171,8 @@ pub fn split_convex<const N: usize, E>(
         }
     }
     // 5. Hertel–Mehlhorn: merge across each diagonal while convex.
-    let mut pieces: Vec<Vec<u16, MAX_PIECE_VERTICES>, N> = tris.iter().map(|t| Vec::from_slice(t).unwrap_or_default()).collect();
+    let mut pieces: Vec<Vec<u16, MAX_PIECE_VERTICES>, N> =
+        tris.iter().map(|t| Vec::from_slice(t).unwrap_or_default()).collect();
     let mut parent: Vec<u16, N> = (0..tris.len() as u16).collect();
     let find = |parent: &mut Vec<u16, N>, mut x: u16| {
         while parent[x as usize] != x {
@@ -289,7 +290,20 @@ mod tests {
     #[test]
     fn comb_splits_into_convex_teeth() {
         // A comb with three teeth: area = base 30x10 + 3 teeth 5x10.
-        let c = pts(&[(0, 0), (30, 0), (30, 20), (25, 20), (25, 10), (15, 10), (15, 20), (10, 20), (10, 10), (5, 10), (5, 20), (0, 20)]);
+        let c = pts(&[
+            (0, 0),
+            (30, 0),
+            (30, 20),
+            (25, 20),
+            (25, 10),
+            (15, 10),
+            (15, 20),
+            (10, 20),
+            (10, 10),
+            (5, 10),
+            (5, 20),
+            (0, 20),
+        ]);
         let (n, a) = split_area(&c[..12]);
         assert_eq!(a, 2 * (300 + 3 * 50));
         assert!((3..=8).contains(&n), "{n} pieces");

@@ -1,0 +1,146 @@
+//! Uniform grid index: cell → ids of the pieces whose box overlaps the cell.
+//!
+//! Stored compactly (CSR): `start[c]` is where cell `c`'s ids begin in
+//! `refs`; they end where cell `c + 1`'s begin (or at `refs.len()`). A box
+//! query reports each piece exactly once, without a visited set: a piece is
+//! reported only from the cell holding the lower-left corner of (its box ∩
+//! the query box), which is always one of the visited cells.
+
+use heapless::Vec;
+
+use super::{Capacity, MapError, QueryStats};
+use crate::geometry::{Point, Rect};
+
+pub(super) struct Grid<const CELLS: usize, const REFS: usize> {
+    origin: Point,
+    cell_mm: u32,
+    cols: u16,
+    rows: u16,
+    start: Vec<u32, CELLS>,
+    refs: Vec<u16, REFS>,
+}
+
+impl<const CELLS: usize, const REFS: usize> Grid<CELLS, REFS> {
+    pub(super) const fn new() -> Self {
+        Self { origin: Point::new(0, 0), cell_mm: 1, cols: 0, rows: 0, start: Vec::new(), refs: Vec::new() }
+    }
+
+    pub(super) fn clear(&mut self) {
+        self.origin = Point::new(0, 0);
+        self.cell_mm = 1;
+        self.cols = 0;
+        self.rows = 0;
+        self.start.clear();
+        self.refs.clear();
+    }
+
+    pub(super) fn dims(&self) -> (u32, u16, u16) {
+        (self.cell_mm, self.cols, self.rows)
+    }
+
+    pub(super) fn refs_len(&self) -> usize {
+        self.refs.len()
+    }
+
+    /// Cell column (or row) of a coordinate, clamped into the grid.
+    fn cell_of(&self, v: i32, origin: i32, n: u16) -> u16 {
+        let d = (v as i64 - origin as i64).max(0) / self.cell_mm as i64;
+        d.min(n as i64 - 1) as u16
+    }
+
+    fn cell_range(&self, r: Rect) -> (u16, u16, u16, u16) {
+        (
+            self.cell_of(r.min.x, self.origin.x, self.cols),
+            self.cell_of(r.min.y, self.origin.y, self.rows),
+            self.cell_of(r.max.x, self.origin.x, self.cols),
+            self.cell_of(r.max.y, self.origin.y, self.rows),
+        )
+    }
+
+    /// Builds the index over `boxes` (piece id = position).
+    pub(super) fn build(&mut self, boxes: impl Iterator<Item = Rect> + Clone, cell_mm: u32) -> Result<(), MapError> {
+        self.clear();
+        let Some(bounds) = boxes.clone().reduce(Rect::union) else {
+            return Ok(());
+        };
+        let cell = cell_mm as i64;
+        let cols = (bounds.max.x as i64 - bounds.min.x as i64) / cell + 1;
+        let rows = (bounds.max.y as i64 - bounds.min.y as i64) / cell + 1;
+        if cols * rows > CELLS as i64 || cols > u16::MAX as i64 || rows > u16::MAX as i64 {
+            return Err(MapError::Full(Capacity::Cells));
+        }
+        self.origin = bounds.min;
+        self.cell_mm = cell_mm;
+        self.cols = cols as u16;
+        self.rows = rows as u16;
+        let ncells = (cols * rows) as usize;
+        // Pass 1: count references per cell, then turn counts into end offsets.
+        let _ = self.start.resize(ncells, 0);
+        let mut total: u64 = 0;
+        for b in boxes.clone() {
+            let (x0, y0, x1, y1) = self.cell_range(b);
+            for y in y0..=y1 {
+                for x in x0..=x1 {
+                    self.start[y as usize * self.cols as usize + x as usize] += 1;
+                }
+            }
+            total += (x1 - x0 + 1) as u64 * (y1 - y0 + 1) as u64;
+        }
+        if total > REFS as u64 {
+            self.clear();
+            return Err(MapError::Full(Capacity::CellRefs));
+        }
+        let mut acc = 0u32;
+        for s in self.start.iter_mut() {
+            acc += *s;
+            *s = acc;
+        }
+        // Pass 2: fill backwards; each cell's end offset walks down to its start.
+        let _ = self.refs.resize(total as usize, 0);
+        for (id, b) in boxes.enumerate() {
+            let (x0, y0, x1, y1) = self.cell_range(b);
+            for y in y0..=y1 {
+                for x in x0..=x1 {
+                    let c = y as usize * self.cols as usize + x as usize;
+                    self.start[c] -= 1;
+                    self.refs[self.start[c] as usize] = id as u16;
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Calls `f(id)` once for every indexed piece whose box (as given by
+    /// `bbox`) overlaps `area`.
+    pub(super) fn query(&self, area: Rect, bbox: impl Fn(u16) -> Rect, mut f: impl FnMut(u16)) -> QueryStats {
+        let mut stats = QueryStats::default();
+        if self.cols == 0 {
+            return stats;
+        }
+        let (x0, y0, x1, y1) = self.cell_range(area);
+        for y in y0..=y1 {
+            for x in x0..=x1 {
+                stats.cells += 1;
+                let c = y as usize * self.cols as usize + x as usize;
+                let lo = self.start[c] as usize;
+                let hi = self.start.get(c + 1).map_or(self.refs.len(), |&e| e as usize);
+                for &id in &self.refs[lo..hi] {
+                    let b = bbox(id);
+                    if !b.overlaps(&area) {
+                        continue;
+                    }
+                    let corner = Point::new(b.min.x.max(area.min.x), b.min.y.max(area.min.y));
+                    let home = (
+                        self.cell_of(corner.x, self.origin.x, self.cols),
+                        self.cell_of(corner.y, self.origin.y, self.rows),
+                    );
+                    if home == (x, y) {
+                        stats.candidates += 1;
+                        f(id);
+                    }
+                }
+            }
+        }
+        stats
+    }
+}
