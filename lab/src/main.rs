@@ -1,1 +1,40 @@
-fn main() {}
+//! `echoloc-lab`: the std command-line tool beside the firmware library.
+//! Units on the command line and in files are metres and degrees (DESIGN §7);
+//! output is JSON.
+
+mod map;
+
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+
+#[derive(Parser)]
+#[command(name = "echoloc-lab", version, about = "echoloc's lab tool: maps, windows, prediction, credence")]
+struct Cli {
+    #[command(subcommand)]
+    cmd: Cmd,
+}
+
+#[derive(Subcommand)]
+enum Cmd {
+    /// Polygon maps: import to the firmware's blob, inspect.
+    #[command(subcommand)]
+    Map(map::MapCmd),
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.cmd {
+        Cmd::Map(c) => map::run(c),
+    };
+    match result {
+        Ok(json) => {
+            println!("{json}");
+            ExitCode::SUCCESS
+        }
+        Err(e) => {
+            eprintln!("echoloc-lab: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}

@@ -27,6 +27,12 @@ use crate::geometry::{Convex, ConvexError, Point, Rect, Segment, MAX_PIECE_VERTI
 use crate::tvector::Entry;
 use grid::Grid;
 
+/// The map every shipped firmware and `echoloc-lab` use: 1024 obstacles and
+/// pieces, 12 288 vertices (true and buffered), 4096 grid cells and 12 288
+/// cell references — about 160 KiB of RAM, sized for an STM32F4-class part.
+/// `echoloc-lab map import` refuses maps that do not fit it.
+pub type StandardMap = Map<1024, 12288, 4096, 12288>;
+
 /// What an obstacle is.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]

@@ -1,1 +1,196 @@
-#![no_std] #![no_main]
+//! echoloc on QEMU's `mps2-an386` (Cortex-M4F).
+//!
+//! Loads the office map blob (built by `echoloc-lab map import
+//! maps/office.geojson`), refuses a corrupted copy of it, runs segment
+//! queries through the grid index, prints what it found with the SysTick cost
+//! of each query (deterministic under `-icount shift=0`), then the stack's
+//! high-water mark (cortex-m-rt `paint-stack`), and exits through
+//! semihosting: 0 when every check passed, 1 otherwise. A HardFault or panic
+//! exits with 1 too, so a crash can never look like success.
+#![no_std]
+#![no_main]
+
+use cortex_m::peripheral::{syst::SystClkSource, SYST};
+use cortex_m_rt::{entry, exception, ExceptionFrame};
+use cortex_m_semihosting::{debug, hprintln};
+use echoloc::geometry::{Point, Segment};
+use echoloc::map::{BlobError, Layer, StandardMap};
+use static_cell::ConstStaticCell;
+
+/// The map lives in a static, initialised at compile time: no stack copy.
+static MAP: ConstStaticCell<StandardMap> = ConstStaticCell::new(StandardMap::new());
+/// The blob stays in flash.
+static BLOB: &[u8] = include_bytes!("../office.map");
+/// Scratch RAM for the corrupted copy.
+static SCRATCH: ConstStaticCell<[u8; 1024]> = ConstStaticCell::new([0; 1024]);
+
+/// Segment queries, mm: (from, to, what a person would expect).
+const QUERIES: [(Point, Point, &str); 6] = [
+    (Point::new(1000, 3000), Point::new(9000, 3000), "east along y=3 m to the partition"),
+    (Point::new(2800, 500), Point::new(2800, 4000), "north through the table"),
+    (Point::new(8000, 4000), Point::new(6000, 4000), "west through the door gap"),
+    (Point::new(5000, 4000), Point::new(5000, 7900), "north to the pillar"),
+    (Point::new(10250, 4000), Point::new(10250, 500), "south into the U-shelf's mouth"),
+    (Point::new(4000, 4000), Point::new(4500, 4500), "short diagonal in free space"),
+];
+
+#[entry]
+fn main() -> ! {
+    let mut ok = true;
+    let mut syst = cortex_m::Peripherals::take().map(|p| p.SYST);
+    if let Some(s) = syst.as_mut() {
+        s.set_clock_source(SystClkSource::Core);
+        s.set_reload(0x00FF_FFFF);
+        s.clear_current();
+        s.enable_counter();
+    }
+
+    hprintln!("echoloc {} on mps2-an386 (Cortex-M4F)", env!("CARGO_PKG_VERSION"));
+    // Calibrate: a loop of exactly 2 instructions per turn (subs, bne).
+    let t0 = ticks(&syst);
+    spin(10_000);
+    let cal = elapsed(t0, ticks(&syst)).max(1);
+    hprintln!("calibration: 20000 instructions = {} SysTick ticks ({} instructions per tick)", cal, 20_000 / cal);
+    let map = MAP.take();
+
+    // A corrupted copy must be refused with a typed error, and leave the map empty.
+    let scratch = SCRATCH.take();
+    let n = BLOB.len().min(scratch.len());
+    scratch[..n].copy_from_slice(&BLOB[..n]);
+    scratch[n - 1] ^= 0x40;
+    match map.load(&scratch[..n]) {
+        Err(BlobError::BadCrc { .. }) if map.piece_count() == 0 => hprintln!("corrupted blob: refused (BadCrc)"),
+        other => {
+            hprintln!("FAIL: corrupted blob gave {:?}", other);
+            ok = false;
+        }
+    }
+
+    let t0 = ticks(&syst);
+    let loaded = map.load(BLOB);
+    let load_ticks = elapsed(t0, ticks(&syst));
+    if let Err(e) = loaded {
+        hprintln!("FAIL: map blob refused: {:?}", e);
+        exit(false);
+    }
+    let (cell, cols, rows) = map.grid_dims();
+    hprintln!(
+        "map: {} bytes, {} obstacles, {} convex pieces, {} edges, t_b {} mm, grid {}x{} of {} mm, {} refs; load {} ticks",
+        BLOB.len(),
+        map.obstacles().len(),
+        map.piece_count(),
+        map.true_vertex_count(),
+        map.buffer_mm(),
+        cols,
+        rows,
+        cell,
+        map.grid_refs(),
+        load_ticks
+    );
+
+    for (i, &(a, b, what)) in QUERIES.iter().enumerate() {
+        let seg = Segment::new(a, b);
+        let t0 = ticks(&syst);
+        let first = map.first_hit(seg);
+        let t1 = ticks(&syst);
+        let mut buffered = 0u32;
+        let stats = map.for_each_hit(seg, Layer::Buffered, |_| buffered += 1);
+        let (Ok(first), Ok(stats)) = (first, stats) else {
+            hprintln!("FAIL: query on an unfinished map");
+            exit(false);
+        };
+        match first {
+            Some(h) => {
+                let kind = map.obstacles()[h.obstacle as usize].kind;
+                let range = isqrt(a.dist2(h.point) as u64);
+                hprintln!(
+                    "q{} {}: first hit obstacle {} ({:?}) piece {} at ({}, {}) mm, range {} mm; {} buffered hits; {} cells, {} candidates; {} ticks",
+                    i, what, h.obstacle, kind, h.piece, h.point.x, h.point.y, range, buffered, stats.cells, stats.candidates, elapsed(t0, t1)
+                );
+            }
+            None => hprintln!(
+                "q{} {}: no hit; {} buffered hits; {} cells, {} candidates; {} ticks",
+                i,
+                what,
+                buffered,
+                stats.cells,
+                stats.candidates,
+                elapsed(t0, t1)
+            ),
+        }
+    }
+
+    let (used, size) = stack_high_water();
+    hprintln!("stack high-water mark: {} of {} bytes", used, size);
+    exit(ok);
+}
+
+/// Exactly `2 * n` instructions (n ≥ 1): the calibration loop.
+fn spin(n: u32) {
+    // SAFETY: a register-only countdown loop; no memory is touched.
+    #[allow(unsafe_code)]
+    unsafe {
+        core::arch::asm!("1:", "subs {0}, {0}, #1", "bne 1b", inout(reg) n => _, options(nomem, nostack));
+    }
+}
+
+fn ticks(s: &Option<SYST>) -> u32 {
+    s.as_ref().map_or(0, |_| SYST::get_current())
+}
+
+/// SysTick counts down and wraps at 2^24.
+fn elapsed(start: u32, end: u32) -> u32 {
+    start.wrapping_sub(end) & 0x00FF_FFFF
+}
+
+fn isqrt(v: u64) -> u64 {
+    let mut x = v;
+    let mut y = x.div_ceil(2);
+    while y < x {
+        x = y;
+        y = (x + v / x) / 2;
+    }
+    x
+}
+
+/// Bytes of stack ever used: cortex-m-rt painted `_stack_end.._stack_start`
+/// with `0xCCCC_CCCC` before `main`; the lowest overwritten word marks the
+/// deepest use.
+fn stack_high_water() -> (usize, usize) {
+    extern "C" {
+        static _stack_start: u32;
+        static _stack_end: u32;
+    }
+    // SAFETY: only the symbols' addresses are taken; the words between them
+    // are plain RAM that cortex-m-rt painted, read with volatile reads.
+    #[allow(unsafe_code)]
+    unsafe {
+        let top = core::ptr::addr_of!(_stack_start) as usize;
+        let bottom = core::ptr::addr_of!(_stack_end) as usize;
+        let mut p = bottom;
+        while p < top && core::ptr::read_volatile(p as *const u32) == cortex_m_rt::STACK_PAINT_VALUE {
+            p += 4;
+        }
+        (top - p, top - bottom)
+    }
+}
+
+fn exit(ok: bool) -> ! {
+    debug::exit(if ok { debug::EXIT_SUCCESS } else { debug::EXIT_FAILURE });
+    // Only reached when semihosting is off (no debugger): stop here.
+    loop {
+        cortex_m::asm::wfi();
+    }
+}
+
+#[exception]
+unsafe fn HardFault(ef: &ExceptionFrame) -> ! {
+    hprintln!("HardFault at pc {:#010x}", ef.pc());
+    exit(false)
+}
+
+#[panic_handler]
+fn panic(info: &core::panic::PanicInfo) -> ! {
+    hprintln!("panic: {}", info);
+    exit(false)
+}
