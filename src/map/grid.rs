@@ -22,12 +22,12 @@ pub(super) struct Grid<const CELLS: usize, const REFS: usize> {
 
 impl<const CELLS: usize, const REFS: usize> Grid<CELLS, REFS> {
     pub(super) const fn new() -> Self {
-        Self { origin: Point::new(0, 0), cell_mm: 1, cols: 0, rows: 0, start: Vec::new(), refs: Vec::new() }
+        Self { origin: Point::new(0, 0), cell_mm: 0, cols: 0, rows: 0, start: Vec::new(), refs: Vec::new() }
     }
 
     pub(super) fn clear(&mut self) {
         self.origin = Point::new(0, 0);
-        self.cell_mm = 1;
+        self.cell_mm = 0;
         self.cols = 0;
         self.rows = 0;
         self.start.clear();
@@ -57,9 +57,13 @@ impl<const CELLS: usize, const REFS: usize> Grid<CELLS, REFS> {
         )
     }
 
+    // An all-zero empty grid keeps `Map::new()` in .bss rather than .data (no
+    // flash image of an empty map); `cell_mm` is only read once `cols > 0`.
+
     /// Builds the index over `boxes` (piece id = position).
     pub(super) fn build(&mut self, boxes: impl Iterator<Item = Rect> + Clone, cell_mm: u32) -> Result<(), MapError> {
         self.clear();
+        self.cell_mm = cell_mm;
         let Some(bounds) = boxes.clone().reduce(Rect::union) else {
             return Ok(());
         };

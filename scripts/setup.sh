@@ -1,0 +1,20 @@
+#!/usr/bin/env bash
+# Installs what a fresh machine lacks for echoloc: the thumb targets, rustup
+# components, and qemu-system-arm. Idempotent and quiet when all is present.
+set -euo pipefail
+
+need_targets=(thumbv7em-none-eabihf thumbv6m-none-eabi)
+have_targets=$(rustup target list --installed)
+for t in "${need_targets[@]}"; do
+  grep -qx "$t" <<<"$have_targets" || rustup target add "$t"
+done
+have_components=$(rustup component list --installed)
+for c in llvm-tools rustfmt clippy; do
+  grep -q "^$c" <<<"$have_components" || rustup component add "$c"
+done
+if ! command -v qemu-system-arm >/dev/null 2>&1; then
+  sudo_=""
+  [ "$(id -u)" -eq 0 ] || sudo_="sudo"
+  $sudo_ apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $sudo_ apt-get install -y -qq qemu-system-arm >/dev/null
+fi

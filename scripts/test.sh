@@ -1,0 +1,49 @@
+#!/usr/bin/env bash
+# Every check CI runs, in order. Installs what a fresh machine lacks first.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+bash scripts/setup.sh
+
+step() { printf '\n== %s\n' "$*"; }
+thumbs=(thumbv7em-none-eabihf thumbv6m-none-eabi)
+
+step "format"
+cargo fmt --all -- --check
+
+step "clippy: host crates (all targets), core on the thumb targets (with and without defmt), boards"
+cargo clippy -q --all-targets -- -D warnings
+for t in "${thumbs[@]}"; do
+  cargo clippy -q -p echoloc --target "$t" -- -D warnings
+  cargo clippy -q -p echoloc --target "$t" --features defmt -- -D warnings
+done
+cargo clippy -q -p qemu-mps2-an386 --target thumbv7em-none-eabihf -- -D warnings
+
+step "core builds for the thumb targets"
+for t in "${thumbs[@]}"; do
+  cargo build -q -p echoloc --target "$t" --release
+  cargo build -q -p echoloc --target "$t" --release --features defmt
+done
+
+step "boards build"
+cargo build -q -p qemu-mps2-an386 --target thumbv7em-none-eabihf --release
+
+step "host tests (unit, integration, property, doc)"
+cargo test -q --workspace 2>&1 | tee target/host-tests.log
+# One closing line for CI readers: the sum over every test binary.
+awk '/^test result:/ { p += $4; f += $6 } END { printf "host tests: %d passed, %d failed\n", p, f }' target/host-tests.log
+
+step "QEMU firmware run (timeout in the runner)"
+out=$(cargo run -q -p qemu-mps2-an386 --target thumbv7em-none-eabihf --release 2>&1) || {
+  echo "$out"
+  echo "firmware exited non-zero"
+  exit 1
+}
+echo "$out"
+grep -q "corrupted blob: refused" <<<"$out"
+grep -q "stack high-water mark" <<<"$out"
+
+step "docs"
+RUSTDOCFLAGS="-D warnings" cargo doc -q --no-deps --workspace
+
+echo
+echo "all checks passed"
