@@ -13,6 +13,7 @@
 //! | [`geometry`] | integer-millimetre points, exact `i64` predicates, convex pieces, convex splitting |
 //! | [`tvector`] | the paper's t-vectors: edge-side bit masks, front surfaces, segment–piece collision |
 //! | [`buffer`] | C-space buffers: a piece grown conservatively by `t_b` |
+//! | [`driver`] | the sonar ring driver over embedded-hal 1.0: Polaroid 6500-class modules, multiplexer, firing schedule, EERUF, faults |
 //! | [`map`] | the fixed-capacity obstacle map, its uniform grid index and its binary blob |
 //!
 //! Every geometric *decision* is exact integer arithmetic; there is no
@@ -38,6 +39,7 @@
 #![warn(missing_docs)]
 
 pub mod buffer;
+pub mod driver;
 pub mod geometry;
 pub mod map;
 pub mod tvector;
