@@ -1,0 +1,111 @@
+//! `echoloc-lab map import` end to end: the checked-in firmware blob is what
+//! the importer makes today, and bad inputs fail clearly without writing.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn lab() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_echoloc-lab"))
+}
+
+fn root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
+}
+
+fn tmp(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("echoloc-lab-test-{}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    d.join(name)
+}
+
+#[test]
+fn checked_in_firmware_blob_is_fresh() {
+    let out = tmp("office.map");
+    let o = lab()
+        .args(["map", "import"])
+        .arg(root().join("maps/office.geojson"))
+        .arg("-o")
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let summary: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(summary["polygons"], 9);
+    assert_eq!(summary["convex_pieces"], 15);
+    let fresh = std::fs::read(&out).unwrap();
+    assert_eq!(summary["bytes"], fresh.len());
+    let shipped = std::fs::read(root().join("boards/qemu-mps2-an386/office.map")).unwrap();
+    assert!(
+        fresh == shipped,
+        "boards/qemu-mps2-an386/office.map is stale: re-run `cargo run -p echoloc-lab -- map import maps/office.geojson -o boards/qemu-mps2-an386/office.map`"
+    );
+    // `map info` loads it as the firmware does and reports the same figures.
+    let o = lab().args(["map", "info"]).arg(&out).output().unwrap();
+    assert!(o.status.success());
+    let info: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    for k in ["convex_pieces", "edges", "bytes", "buffer_mm", "cell_mm", "grid", "grid_refs"] {
+        assert_eq!(info[k], summary[k], "{k}");
+    }
+}
+
+fn import_fails(name: &str, text: &str, expect: &str) {
+    let input = tmp(name);
+    std::fs::write(&input, text).unwrap();
+    let out = tmp(&format!("{name}.map"));
+    let _ = std::fs::remove_file(&out);
+    let o = lab().args(["map", "import"]).arg(&input).arg("-o").arg(&out).output().unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success(), "{name}: should fail");
+    assert!(err.contains(input.to_str().unwrap()), "{name}: error names the file: {err}");
+    assert!(err.contains(expect), "{name}: error says {expect:?}: {err}");
+    assert!(!out.exists(), "{name}: nothing written");
+    assert!(!out.with_extension("partial").exists(), "{name}: no partial file left");
+}
+
+#[test]
+fn bad_inputs_fail_clearly_and_write_nothing() {
+    import_fails("notjson.geojson", "{ nope", "not JSON");
+    import_fails("notype.geojson", "{}", "no \"type\"");
+    import_fails(
+        "point.geojson",
+        r#"{"type":"Point","coordinates":[1,2]}"#,
+        "unsupported geometry type \"Point\"",
+    );
+    import_fails(
+        "hole.geojson",
+        r#"{"type":"Polygon","coordinates":[[[0,0],[4,0],[4,4],[0,4],[0,0]],[[1,1],[2,1],[2,2],[1,1]]]}"#,
+        "hole",
+    );
+    import_fails(
+        "far.geojson",
+        r#"{"type":"LineString","coordinates":[[0,0],[2000000,0]]}"#,
+        "x = 2000000 m is beyond",
+    );
+    import_fails(
+        "bowtie.geojson",
+        r#"{"type":"Polygon","coordinates":[[[0,0],[1,1],[1,0],[0,1],[0,0]]]}"#,
+        "NotSimple",
+    );
+    import_fails("nan.geojson", r#"{"type":"LineString","coordinates":[[0,0],["a",0]]}"#, "x is not a number");
+    let o = lab().args(["map", "import", "/nonexistent/x.geojson", "-o", "/tmp/never.map"]).output().unwrap();
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("/nonexistent/x.geojson"));
+}
+
+#[test]
+fn a_map_beyond_the_firmware_capacity_is_refused() {
+    // 1100 separate squares: more obstacles than StandardMap holds.
+    let mut feats = Vec::new();
+    for i in 0..1100 {
+        let (x, y) = ((i % 40) as f64 * 2.0, (i / 40) as f64 * 2.0);
+        feats.push(format!(
+            r#"{{"type":"Feature","geometry":{{"type":"Polygon","coordinates":[[[{x},{y}],[{},{y}],[{},{}],[{x},{}],[{x},{y}]]]}}}}"#,
+            x + 1.0,
+            x + 1.0,
+            y + 1.0,
+            y + 1.0
+        ));
+    }
+    let text = format!(r#"{{"type":"FeatureCollection","features":[{}]}}"#, feats.join(","));
+    import_fails("big.geojson", &text, "exceeds the firmware's capacity");
+}
