@@ -12,6 +12,7 @@
 //! |---|---|
 //! | [`geometry`] | integer-millimetre points, exact `i64` predicates, convex pieces, convex splitting |
 //! | [`tvector`] | the paper's t-vectors: edge-side bit masks, front surfaces, segment–piece collision |
+//! | [`credence`] | credence κ(R, θ): the model trait and fixed-point κ |
 //! | [`buffer`] | C-space buffers: a piece grown conservatively by `t_b` |
 //! | [`driver`] | the sonar ring driver over embedded-hal 1.0: Polaroid 6500-class modules, multiplexer, firing schedule, EERUF, faults |
 //! | [`map`] | the fixed-capacity obstacle map, its uniform grid index and its binary blob |
@@ -39,6 +40,7 @@
 #![warn(missing_docs)]
 
 pub mod buffer;
+pub mod credence;
 pub mod driver;
 pub mod geometry;
 pub mod map;
