@@ -303,7 +303,8 @@ where
             *l = last;
         }
         // slot < N ≤ 256 (compile-time check), so it fits a u8.
-        let reading = RingReading { transducer: t, slot: self.slot as u8, cycle: self.cycle, fired_at_us: fired_at, outcome };
+        let reading =
+            RingReading { transducer: t, slot: self.slot as u8, cycle: self.cycle, fired_at_us: fired_at, outcome };
         self.advance();
         reading
     }

@@ -5,7 +5,8 @@
 //! [`Schedule::spread`] therefore fires with a stride `s` coprime to `N`
 //! (slot `j` fires transducer `j·s mod N`, so every transducer fires once a
 //! cycle) chosen so that each ping is as far round the ring as possible from
-//! the three pings before it. For 16 transducers that is `s = 3`, for 24
+//! the three pings before it (ties go to the larger distance from the ping
+//! just before). For 16 transducers that is `s = 3`, for 24
 //! `s = 5`: consecutive pings 3 (resp. 5) positions apart, neighbours at least
 //! 5 slots apart in time.
 
@@ -30,23 +31,26 @@ impl<const N: usize> Schedule<N> {
     pub const fn spread() -> Self {
         let () = Self::CAPACITY_OK;
         let mut best = 1usize;
-        let mut best_score = 0usize;
+        let mut best_score = [0usize; LOOK_BACK + 1];
         let mut s = 1usize;
         while s < N {
             if gcd(s, N) == 1 {
-                // Score: the smallest ring distance from a ping to any of the
-                // LOOK_BACK pings before it (the order is periodic, so the
-                // cycle boundary needs no special case).
-                let mut score = usize::MAX;
+                // Score: first the smallest ring distance from a ping to any
+                // of the LOOK_BACK pings before it, then the distances to the
+                // 1st, 2nd, … ping before, compared in that order (the order
+                // is periodic, so the cycle boundary needs no special case).
+                let mut score = [0usize; LOOK_BACK + 1];
+                score[0] = usize::MAX;
                 let mut m = 1usize;
                 while m <= LOOK_BACK && m < N {
                     let d = ring_distance((m * s) % N, N);
-                    if d < score {
-                        score = d;
+                    score[m] = d;
+                    if d < score[0] {
+                        score[0] = d;
                     }
                     m += 1;
                 }
-                if score > best_score {
+                if better(&score, &best_score) {
                     best_score = score;
                     best = s;
                 }
@@ -114,6 +118,18 @@ impl<const N: usize> Schedule<N> {
     }
 }
 
+/// Lexicographic `a > b`.
+const fn better(a: &[usize; LOOK_BACK + 1], b: &[usize; LOOK_BACK + 1]) -> bool {
+    let mut i = 0;
+    while i < LOOK_BACK + 1 {
+        if a[i] != b[i] {
+            return a[i] > b[i];
+        }
+        i += 1;
+    }
+    false
+}
+
 const fn gcd(mut a: usize, mut b: usize) -> usize {
     while b != 0 {
         let t = a % b;
@@ -140,6 +156,7 @@ mod tests {
     fn strides_for_the_usual_rings() {
         assert_eq!(Schedule::<16>::spread().stride_used(), 3);
         assert_eq!(Schedule::<24>::spread().stride_used(), 5);
+        assert_eq!(Schedule::<8>::spread().stride_used(), 3);
         assert_eq!(Schedule::<1>::spread().order(), &[0]);
         assert_eq!(Schedule::<2>::spread().order(), &[0, 1]);
     }
