@@ -72,32 +72,30 @@ pub fn convex_piece(r: i32, max: usize) -> impl Strategy<Value = Vec<Point>> {
 /// lines (collinear cases), or degenerate (a point).
 pub fn segment_near(piece: Vec<Point>, r: i32) -> impl Strategy<Value = (Vec<Point>, Point, Point)> {
     let n = piece.len();
-    (0..7u8, 0..n, 0..n, -r..=r, -r..=r, -r..=r, -r..=r, -3i32..=3).prop_map(
-        move |(mode, i, j, x0, y0, x1, y1, k)| {
-            let c = piece[0];
-            let free_a = Point::new(c.x + x0, c.y + y0);
-            let free_b = Point::new(c.x + x1, c.y + y1);
-            let vi = piece[i];
-            let vn = piece[(i + 1) % n];
-            // A point on edge i's supporting line, k edge-lengths along it.
-            let on_line = Point::new(vi.x + k * (vn.x - vi.x), vi.y + k * (vn.y - vi.y));
-            let (a, b) = match mode {
-                0 => (free_a, free_b),
-                1 => (piece[i], free_b),
-                2 => (piece[i], piece[j]),
-                3 => (on_line, vi),
-                4 => (on_line, Point::new(vn.x + (vn.x - vi.x) * 2, vn.y + (vn.y - vi.y) * 2)),
-                5 => {
-                    // Through vertex i in a random direction: often touches only there.
-                    let (dx, dy) = (x1 % 13, y1 % 13 + if x1 % 13 == 0 { 1 } else { 0 });
-                    let (s, t) = (x0.rem_euclid(7) + 1, y0.rem_euclid(7) + 1);
-                    (Point::new(vi.x + s * dx, vi.y + s * dy), Point::new(vi.x - t * dx, vi.y - t * dy))
-                }
-                _ => (free_a, free_a),
-            };
-            (piece.clone(), a, b)
-        },
-    )
+    (0..7u8, 0..n, 0..n, -r..=r, -r..=r, -r..=r, -r..=r, -3i32..=3).prop_map(move |(mode, i, j, x0, y0, x1, y1, k)| {
+        let c = piece[0];
+        let free_a = Point::new(c.x + x0, c.y + y0);
+        let free_b = Point::new(c.x + x1, c.y + y1);
+        let vi = piece[i];
+        let vn = piece[(i + 1) % n];
+        // A point on edge i's supporting line, k edge-lengths along it.
+        let on_line = Point::new(vi.x + k * (vn.x - vi.x), vi.y + k * (vn.y - vi.y));
+        let (a, b) = match mode {
+            0 => (free_a, free_b),
+            1 => (piece[i], free_b),
+            2 => (piece[i], piece[j]),
+            3 => (on_line, vi),
+            4 => (on_line, Point::new(vn.x + (vn.x - vi.x) * 2, vn.y + (vn.y - vi.y) * 2)),
+            5 => {
+                // Through vertex i in a random direction: often touches only there.
+                let (dx, dy) = (x1 % 13, y1 % 13 + if x1 % 13 == 0 { 1 } else { 0 });
+                let (s, t) = (x0.rem_euclid(7) + 1, y0.rem_euclid(7) + 1);
+                (Point::new(vi.x + s * dx, vi.y + s * dy), Point::new(vi.x - t * dx, vi.y - t * dy))
+            }
+            _ => (free_a, free_a),
+        };
+        (piece.clone(), a, b)
+    })
 }
 
 /// Random simple polygons: star-shaped around a centre, 3–40 vertices at

@@ -13,13 +13,20 @@ type M = Map<256, 8192, 1024, 8192>;
 
 fn random_map() -> impl Strategy<Value = (Vec<Vec<Point>>, Vec<(Point, Point)>, u32, u32)> {
     (
-        prop::collection::vec(convex_piece(300, 12).prop_map(|p| p.into_iter().map(|v| Point::new(v.x * 10, v.y * 10)).collect()), 1..30),
+        prop::collection::vec(
+            convex_piece(300, 12).prop_map(|p| p.into_iter().map(|v| Point::new(v.x * 10, v.y * 10)).collect()),
+            1..30,
+        ),
         prop::collection::vec((-5000i32..5000, -5000i32..5000, -5000i32..5000, -5000i32..5000), 0..10),
         0u32..400,
         100u32..3000,
     )
         .prop_map(|(solids, walls, tb, cell)| {
-            let walls = walls.into_iter().map(|(a, b, c, d)| (Point::new(a, b), Point::new(c, d))).filter(|(a, b)| a != b).collect();
+            let walls = walls
+                .into_iter()
+                .map(|(a, b, c, d)| (Point::new(a, b), Point::new(c, d)))
+                .filter(|(a, b)| a != b)
+                .collect();
             (solids, walls, tb, cell)
         })
 }

@@ -21,13 +21,7 @@ fn tmp(name: &str) -> PathBuf {
 #[test]
 fn checked_in_firmware_blob_is_fresh() {
     let out = tmp("office.map");
-    let o = lab()
-        .args(["map", "import"])
-        .arg(root().join("maps/office.geojson"))
-        .arg("-o")
-        .arg(&out)
-        .output()
-        .unwrap();
+    let o = lab().args(["map", "import"]).arg(root().join("maps/office.geojson")).arg("-o").arg(&out).output().unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let summary: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert_eq!(summary["polygons"], 9);
@@ -66,11 +60,7 @@ fn import_fails(name: &str, text: &str, expect: &str) {
 fn bad_inputs_fail_clearly_and_write_nothing() {
     import_fails("notjson.geojson", "{ nope", "not JSON");
     import_fails("notype.geojson", "{}", "no \"type\"");
-    import_fails(
-        "point.geojson",
-        r#"{"type":"Point","coordinates":[1,2]}"#,
-        "unsupported geometry type \"Point\"",
-    );
+    import_fails("point.geojson", r#"{"type":"Point","coordinates":[1,2]}"#, "unsupported geometry type \"Point\"");
     import_fails(
         "hole.geojson",
         r#"{"type":"Polygon","coordinates":[[[0,0],[4,0],[4,4],[0,4],[0,0]],[[1,1],[2,1],[2,2],[1,1]]]}"#,
