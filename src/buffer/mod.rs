@@ -63,7 +63,7 @@ fn isqrt(v: u64) -> u64 {
     }
     // Newton's method on integers.
     let mut x = v;
-    let mut y = (x + 1) / 2;
+    let mut y = x.div_ceil(2);
     while y < x {
         x = y;
         y = (x + v / x) / 2;
