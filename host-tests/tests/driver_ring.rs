@@ -306,6 +306,7 @@ fn crosstalk_is_rejected_by_alternating_delays() {
     let six: Vec<u32> =
         run.iter().filter(|(_, r)| r.transducer == 6).filter_map(|(_, r)| r.outcome.echo_mm()).collect();
     assert_eq!(six.len(), 4);
+    println!("ghost on transducer 6 with EERUF, mm per cycle: {six:?}");
     for w in six.windows(2) {
         assert!(w[0].abs_diff(w[1]) > eeruf.tolerance_mm, "{six:?}");
         assert!(w[0].abs_diff(w[1]) <= 172, "{six:?}");
@@ -332,6 +333,7 @@ fn without_alternating_delays_the_ghost_looks_steady() {
     let six: Vec<u32> =
         run.iter().filter(|(_, r)| r.transducer == 6).filter_map(|(_, r)| r.outcome.accepted_mm()).collect();
     assert_eq!(six.len(), 4);
+    println!("ghost on transducer 6 without EERUF, mm per cycle: {six:?}");
     assert!(six.iter().all(|&mm| mm == six[0]), "{six:?}");
     assert!(run.iter().filter(|(g, _)| *g).all(|(_, r)| r.outcome.accepted_mm().is_some()));
 }
