@@ -11,7 +11,10 @@ use proptest::prelude::*;
 
 type M = Map<256, 8192, 1024, 8192>;
 
-fn random_map() -> impl Strategy<Value = (Vec<Vec<Point>>, Vec<(Point, Point)>, u32, u32)> {
+/// Solids, walls, t_b and cell size.
+type RandomMap = (Vec<Vec<Point>>, Vec<(Point, Point)>, u32, u32);
+
+fn random_map() -> impl Strategy<Value = RandomMap> {
     (
         prop::collection::vec(
             convex_piece(300, 12).prop_map(|p| p.into_iter().map(|v| Point::new(v.x * 10, v.y * 10)).collect()),
