@@ -2,6 +2,7 @@
 //! Units on the command line and in files are metres and degrees (DESIGN §7);
 //! output is JSON.
 
+mod credence;
 mod map;
 
 use std::process::ExitCode;
@@ -20,12 +21,18 @@ enum Cmd {
     /// Polygon maps: import to the firmware's blob, inspect.
     #[command(subcommand)]
     Map(map::MapCmd),
+    /// Credence data: run the physical sonar model as the paper's experiment, one CSV per day.
+    Synth(credence::SynthArgs),
+    /// Credence net: leave-one-day-out evaluation against the Gaussian baseline, training, quantisation, figures.
+    Train(credence::TrainArgs),
 }
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.cmd {
         Cmd::Map(c) => map::run(c),
+        Cmd::Synth(a) => credence::synth_cmd(&a).map_err(|e| map::LabError(e.to_string())),
+        Cmd::Train(a) => credence::train_cmd(&a).map_err(|e| map::LabError(e.to_string())),
     };
     match result {
         Ok(json) => {

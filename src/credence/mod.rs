@@ -7,6 +7,11 @@
 //!
 //! κ is a probability in `[0, 1]`, carried in firmware as the fixed-point
 //! [`Kappa`] (unsigned Q1.15: `Kappa::ONE` is exactly 1).
+//!
+//! The shipped model is [`net::CredenceNet`]: the paper's 2-10-1 net over
+//! (R, |θ|), trained by `echoloc-lab train` on data from a physical model of
+//! a Polaroid 600-series transducer (`docs/credence.md`), run in firmware with
+//! integer arithmetic only.
 
 /// κ as unsigned Q1.15 fixed point, `0 ..= 1`.
 pub type Kappa = fixed::types::U1F15;
@@ -36,3 +41,6 @@ impl<C: Credence + ?Sized> Credence for &C {
         (**self).kappa(echo)
     }
 }
+
+pub mod net;
+mod weights;

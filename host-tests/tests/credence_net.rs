@@ -1,0 +1,189 @@
+//! The firmware's quantised credence net (`echoloc::credence::net`) against
+//! (1) an integer reference written here from the documented algorithm,
+//! bit for bit, and (2) the float net it was rounded from, within 1/256, over
+//! the dense grid 0.5° × 10 mm of the whole input domain (DESIGN §4.4).
+
+use echoloc::credence::net::{CredenceNet, QuantWeights, FLOAT_WEIGHTS, HIDDEN, SHIPPED_WEIGHTS, SIGMOID_TAIL};
+use echoloc::credence::{Credence, EchoGeometry, Kappa};
+
+/// The logistic function in f64 (std's exp).
+fn logistic(z: f64) -> f64 {
+    1.0 / (1.0 + (-z).exp())
+}
+
+/// The σ table as the docs define it: round(2¹⁶·(1 − σ(k/16))), k = 0..=256.
+fn table() -> Vec<i128> {
+    (0..=256).map(|k| ((1.0 - logistic(k as f64 / 16.0)) * 65536.0).round() as i128).collect()
+}
+
+/// `floor(v / 2^s)`, spelled with Euclidean division rather than a shift.
+fn floor_div_pow2(v: i128, s: u32) -> i128 {
+    v.div_euclid(1i128 << s)
+}
+
+/// σ of a Q16.16 pre-activation, Q0.16 — the reference's own spelling.
+fn sigma_ref(lut: &[i128], z: i128) -> i128 {
+    let z = z.clamp(-(16 << 16), 16 << 16);
+    let a = z.abs();
+    let i = (a / 4096) as usize;
+    let f = a % 4096;
+    let u = if i == 256 { lut[256] } else { lut[i] - floor_div_pow2((lut[i] - lut[i + 1]) * f + 2048, 12) };
+    if z >= 0 {
+        65536 - u
+    } else {
+        u
+    }
+}
+
+/// κ bits (U1F15) by the algorithm of `net.rs`'s docs, in i128 throughout.
+fn kappa_ref(w: &QuantWeights, lut: &[i128], range_mm: u32, theta_mdeg: i32) -> u16 {
+    let r = i128::from(range_mm).clamp(500, 5500);
+    let t = i128::from(theta_mdeg).abs().min(45_000);
+    let x0 = (r - 3000) * 32; // (R − 3000)/2048 in Q16.16
+    let x1 = (t - 22_500) * 4; // (|θ| − 22.5°)/16.384° in Q16.16
+    let mut acc = 0i128;
+    for j in 0..HIDDEN {
+        let s = i128::from(w.w_hidden[j][0].to_bits()) * x0 + i128::from(w.w_hidden[j][1].to_bits()) * x1;
+        let z = i128::from(w.b_hidden[j].to_bits()) + floor_div_pow2(s + 32_768, 16);
+        acc += i128::from(w.w_out[j].to_bits()) * sigma_ref(lut, z);
+    }
+    let z = i128::from(w.b_out.to_bits()) + floor_div_pow2(acc + 32_768, 16);
+    let k = sigma_ref(lut, z);
+    u16::try_from(floor_div_pow2(k + 1, 1)).expect("κ ≤ 1")
+}
+
+/// The float net of `net.rs`'s docs over `FLOAT_WEIGHTS`.
+fn kappa_float(range_mm: f64, theta_deg: f64) -> f64 {
+    let w = &FLOAT_WEIGHTS;
+    let x0 = (range_mm.clamp(500.0, 5500.0) - 3000.0) / 2048.0;
+    let x1 = (theta_deg.abs().min(45.0) - 22.5) / 16.384;
+    let mut z = w.b_out;
+    for j in 0..HIDDEN {
+        z += w.w_out[j] * logistic(w.w_hidden[j][0] * x0 + w.w_hidden[j][1] * x1 + w.b_hidden[j]);
+    }
+    logistic(z)
+}
+
+/// The dense grid: R 500..=5500 mm step 10, θ −45..=45° step 0.5°.
+fn dense_grid() -> impl Iterator<Item = (u32, i32)> {
+    (500..=5500).step_by(10).flat_map(|r| (-90..=90).map(move |k| (r, k * 500)))
+}
+
+/// Points outside the domain and at integer extremes: clamping must agree too.
+fn edge_points() -> Vec<(u32, i32)> {
+    let mut v = Vec::new();
+    for r in [0, 1, 499, 500, 501, 2999, 3000, 5499, 5500, 5501, 10_000, u32::MAX] {
+        for t in [i32::MIN, -90_000, -45_001, -45_000, -1, 0, 1, 12_700, 44_999, 45_000, 45_001, 180_000, i32::MAX] {
+            v.push((r, t));
+        }
+    }
+    v
+}
+
+/// Pseudo-random points over and around the domain (xorshift, fixed seed).
+fn random_points(n: usize) -> Vec<(u32, i32)> {
+    let mut s: u64 = 0x2545_F491_4F6C_DD1D;
+    (0..n)
+        .map(|_| {
+            s ^= s << 13;
+            s ^= s >> 7;
+            s ^= s << 17;
+            ((s % 7000) as u32, ((s >> 20) % 120_001) as i32 - 60_000)
+        })
+        .collect()
+}
+
+#[test]
+fn sigmoid_table_is_the_rounded_logistic_tail() {
+    let lut = table();
+    for (k, (&shipped, &want)) in SIGMOID_TAIL.iter().zip(&lut).enumerate() {
+        assert_eq!(i128::from(shipped.to_bits()), want, "L[{k}]");
+    }
+    assert_eq!(SIGMOID_TAIL.len(), 257);
+}
+
+#[test]
+fn shipped_weights_are_the_float_weights_rounded_to_q16_16() {
+    let q = |v: f64| (v * 65536.0).round() as i32;
+    let (f, s) = (&FLOAT_WEIGHTS, &SHIPPED_WEIGHTS);
+    for j in 0..HIDDEN {
+        assert_eq!(s.w_hidden[j][0].to_bits(), q(f.w_hidden[j][0]), "w_hidden[{j}][0]");
+        assert_eq!(s.w_hidden[j][1].to_bits(), q(f.w_hidden[j][1]), "w_hidden[{j}][1]");
+        assert_eq!(s.b_hidden[j].to_bits(), q(f.b_hidden[j]), "b_hidden[{j}]");
+        assert_eq!(s.w_out[j].to_bits(), q(f.w_out[j]), "w_out[{j}]");
+    }
+    assert_eq!(s.b_out.to_bits(), q(f.b_out));
+}
+
+#[test]
+fn bit_exact_against_the_integer_reference() {
+    let lut = table();
+    let net = CredenceNet::shipped();
+    let mut n = 0;
+    let points = dense_grid().chain(edge_points()).chain(random_points(200_000));
+    for (r, t) in points {
+        let got = net.kappa_at(r, t).to_bits();
+        let want = kappa_ref(&SHIPPED_WEIGHTS, &lut, r, t);
+        assert_eq!(got, want, "κ({r} mm, {t} mdeg): firmware {got}, reference {want}");
+        n += 1;
+    }
+    assert!(n > 245_000);
+}
+
+#[test]
+fn the_reference_comparison_notices_a_one_bit_change() {
+    // The bit-exact test must be able to fail: change one weight by one LSB
+    // and the firmware net must differ from the reference somewhere.
+    let lut = table();
+    let mut w = SHIPPED_WEIGHTS;
+    // One LSB of Q16.16, away from zero (b_out is not zero in any trained net).
+    w.b_out += w.b_out.signum() >> 16u32;
+    assert_eq!((w.b_out.to_bits() - SHIPPED_WEIGHTS.b_out.to_bits()).abs(), 1);
+    let net = CredenceNet::new(&w);
+    let differs = dense_grid().any(|(r, t)| net.kappa_at(r, t).to_bits() != kappa_ref(&SHIPPED_WEIGHTS, &lut, r, t));
+    assert!(differs);
+}
+
+#[test]
+fn within_1_256_of_the_float_net_over_the_dense_grid() {
+    let net = CredenceNet::shipped();
+    let mut worst = (0.0f64, 0, 0);
+    for (r, t) in dense_grid() {
+        let q = net.kappa_at(r, t).to_num::<f64>();
+        let e = (q - kappa_float(f64::from(r), f64::from(t) / 1000.0)).abs();
+        if e > worst.0 {
+            worst = (e, r, t);
+        }
+    }
+    println!("max |quantised − float| = {:.6} at ({} mm, {} mdeg)", worst.0, worst.1, worst.2);
+    assert!(worst.0 <= 1.0 / 256.0, "max |quantised − float| = {} at {:?}", worst.0, (worst.1, worst.2));
+}
+
+#[test]
+fn trait_ignores_delta_and_the_sign_of_theta() {
+    let net = CredenceNet::shipped();
+    let model: &dyn Credence = &net;
+    for (r, t) in random_points(2_000) {
+        let a = EchoGeometry { range_mm: r, theta_mdeg: t, delta_mdeg: 0 };
+        let b = EchoGeometry { range_mm: r, theta_mdeg: t.saturating_neg(), delta_mdeg: 60_000 };
+        assert_eq!(model.kappa(&a), model.kappa(&b));
+        assert_eq!(model.kappa(&a), net.kappa_at(r, t));
+        assert!(model.kappa(&a) <= Kappa::ONE);
+    }
+}
+
+#[test]
+fn the_shipped_net_has_the_three_lobes() {
+    // Paper §4.2: "all three lobes be considered". At 1 m: high on the axis,
+    // a ravine at the first null (12.7°), the first side lobe (17.2°), the
+    // second null (23.8°), the second side lobe (29°), nothing at 45°.
+    let k = |r: u32, deg: f64| CredenceNet::shipped().kappa_at(r, (deg * 1000.0) as i32).to_num::<f64>();
+    let r = 1000;
+    assert!(k(r, 0.0) > 0.85, "axis {}", k(r, 0.0));
+    assert!(k(r, 12.5) < k(r, 17.5) - 0.2, "first null {} vs lobe {}", k(r, 12.5), k(r, 17.5));
+    assert!(k(r, 17.5) > 0.7, "first side lobe {}", k(r, 17.5));
+    assert!(k(r, 23.8) < k(r, 29.0) - 0.2, "second null {} vs lobe {}", k(r, 23.8), k(r, 29.0));
+    assert!(k(r, 45.0) < 0.1, "45° {}", k(r, 45.0));
+    // The side lobes fade with range faster than the main lobe.
+    assert!(k(5500, 17.5) < k(1000, 17.5) - 0.3 && k(5500, 0.0) > 0.6);
+}
