@@ -1,0 +1,135 @@
+//! The cost of one credence evaluation κ(R, θ) on QEMU's `mps2-an386`
+//! (Cortex-M4F), with the quantised 2-10-1 net the firmware ships
+//! (`echoloc::credence::net`).
+//!
+//! Times `N` evaluations over a sweep of the input domain with SysTick
+//! (deterministic under the runner's `-icount shift=0`), subtracts the same
+//! sweep without the net, and prints ticks and instructions per call; the
+//! instructions per tick come from a calibration loop of known length, as in
+//! the board's main firmware. Checks a few κ values on the way (the axis,
+//! the first null and side lobe) and exits through semihosting: 0 when every
+//! check passed, 1 otherwise; a HardFault or panic exits with 1 too.
+//!
+//! `cargo run -p qemu-mps2-an386 --bin kappa_cost --target thumbv7em-none-eabihf --release`
+#![no_std]
+#![no_main]
+
+use core::hint::black_box;
+
+use cortex_m::peripheral::{syst::SystClkSource, SYST};
+use cortex_m_rt::{entry, exception, ExceptionFrame};
+use cortex_m_semihosting::{debug, hprintln};
+use echoloc::credence::net::CredenceNet;
+use echoloc::credence::{Credence, EchoGeometry, Kappa};
+
+/// Evaluations timed: a 16 × 16 sweep of (R, θ).
+const SIDE: u32 = 16;
+const N: u32 = SIDE * SIDE;
+
+#[entry]
+fn main() -> ! {
+    let mut ok = true;
+    let mut syst = cortex_m::Peripherals::take().map(|p| p.SYST);
+    if let Some(s) = syst.as_mut() {
+        s.set_clock_source(SystClkSource::Core);
+        s.set_reload(0x00FF_FFFF);
+        s.clear_current();
+        s.enable_counter();
+    }
+    hprintln!("echoloc {} credence cost on mps2-an386 (Cortex-M4F)", env!("CARGO_PKG_VERSION"));
+    // Calibrate: a loop of exactly 2 instructions per turn (subs, bne).
+    let t0 = ticks(&syst);
+    spin(10_000);
+    let cal = elapsed(t0, ticks(&syst)).max(1);
+    let per_tick = 20_000 / cal;
+    hprintln!("calibration: 20000 instructions = {} SysTick ticks ({} instructions per tick)", cal, per_tick);
+
+    let net = black_box(CredenceNet::shipped());
+    // Sanity: the shipped net's lobes (host tests pin every value bit-exactly).
+    let k = |r: u32, mdeg: i32| net.kappa(&EchoGeometry { range_mm: r, theta_mdeg: mdeg, delta_mdeg: 0 });
+    let (axis, null, lobe) = (k(1000, 0), k(1000, 12_500), k(1000, -17_500));
+    hprintln!(
+        "kappa at 1 m: axis {} (bits {}), 12.5 deg {} , -17.5 deg {}",
+        axis.to_num::<f32>(),
+        axis.to_bits(),
+        null.to_num::<f32>(),
+        lobe.to_num::<f32>()
+    );
+    if !(axis > Kappa::from_num(0.85) && lobe > null) {
+        hprintln!("FAIL: the shipped net lost its lobes");
+        ok = false;
+    }
+
+    // The sweep with the net, then the same sweep without it.
+    let t0 = ticks(&syst);
+    let mut sum = 0u32;
+    for i in 0..N {
+        let e = black_box(sweep(i));
+        sum = sum.wrapping_add(u32::from(net.kappa(&e).to_bits()));
+    }
+    let with_net = elapsed(t0, ticks(&syst));
+    black_box(sum);
+    let t0 = ticks(&syst);
+    let mut base = 0u32;
+    for i in 0..N {
+        let e = black_box(sweep(i));
+        base = base.wrapping_add(e.range_mm ^ e.theta_mdeg as u32);
+    }
+    let without = elapsed(t0, ticks(&syst));
+    black_box(base);
+    let net_ticks = with_net.saturating_sub(without);
+    hprintln!(
+        "{} evaluations: {} ticks with the net, {} without; {} ticks = {} instructions per kappa (checksum {})",
+        N,
+        with_net,
+        without,
+        net_ticks / N,
+        net_ticks * per_tick / N,
+        sum
+    );
+    exit(ok);
+}
+
+/// The i-th point of a 16 × 16 sweep over R 500…5500 mm × θ −45…45°.
+fn sweep(i: u32) -> EchoGeometry {
+    let (a, b) = ((i % SIDE) as i32, (i / SIDE) as i32);
+    EchoGeometry { range_mm: 500 + 333 * a as u32, theta_mdeg: -45_000 + 6_000 * b, delta_mdeg: 0 }
+}
+
+/// Exactly `2 * n` instructions (n ≥ 1): the calibration loop.
+fn spin(n: u32) {
+    // SAFETY: a register-only countdown loop; no memory is touched.
+    #[allow(unsafe_code)]
+    unsafe {
+        core::arch::asm!("1:", "subs {0}, {0}, #1", "bne 1b", inout(reg) n => _, options(nomem, nostack));
+    }
+}
+
+fn ticks(s: &Option<SYST>) -> u32 {
+    s.as_ref().map_or(0, |_| SYST::get_current())
+}
+
+/// SysTick counts down and wraps at 2^24.
+fn elapsed(start: u32, end: u32) -> u32 {
+    start.wrapping_sub(end) & 0x00FF_FFFF
+}
+
+fn exit(ok: bool) -> ! {
+    debug::exit(if ok { debug::EXIT_SUCCESS } else { debug::EXIT_FAILURE });
+    // Only reached when semihosting is off (no debugger): stop here.
+    loop {
+        cortex_m::asm::wfi();
+    }
+}
+
+#[exception]
+unsafe fn HardFault(ef: &ExceptionFrame) -> ! {
+    hprintln!("HardFault at pc {:#010x}", ef.pc());
+    exit(false)
+}
+
+#[panic_handler]
+fn panic(info: &core::panic::PanicInfo) -> ! {
+    hprintln!("panic: {}", info);
+    exit(false)
+}
