@@ -9,8 +9,10 @@ mod convex;
 mod point;
 mod predicates;
 mod split;
+mod wide;
 
 pub use convex::{Convex, ConvexError, MAX_BUFFERED_VERTICES, MAX_PIECE_VERTICES};
 pub use point::{Point, Rect, Segment, COORD_MAX};
 pub use predicates::{cross, dot, orient, point_on_segment, segments_intersect, Side};
 pub use split::{split_convex, SplitError};
+pub use wide::U256;
