@@ -15,6 +15,7 @@
 //! | [`credence`] | credence κ(R, θ): the model trait and fixed-point κ |
 //! | [`buffer`] | C-space buffers: a piece grown conservatively by `t_b` |
 //! | [`driver`] | the sonar ring driver over embedded-hal 1.0: Polaroid 6500-class modules, multiplexer, firing schedule, EERUF, faults |
+//! | [`window`] | sensor windows: parameters, pseudo-paths, placement, exact sector tests, beacon collection |
 //! | [`map`] | the fixed-capacity obstacle map, its uniform grid index and its binary blob |
 //!
 //! Every geometric *decision* is exact integer arithmetic; there is no
@@ -45,3 +46,4 @@ pub mod driver;
 pub mod geometry;
 pub mod map;
 pub mod tvector;
+pub mod window;

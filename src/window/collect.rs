@@ -1,0 +1,116 @@
+//! Beacon collection: which pieces are in a placed window.
+
+use heapless::Vec;
+
+use super::{Sector, WindowError, WindowParams, MAX_PSEUDO_PATHS};
+use crate::geometry::Point;
+use crate::map::{Map, MapError};
+
+/// How to collect beacons.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Strategy {
+    /// The paper's pseudo-paths against buffered outlines.
+    PseudoPaths,
+    /// Exact true-outline ∩ sector.
+    Exact,
+}
+
+/// Why collection failed.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum CollectError {
+    /// The map refused the query (not finished).
+    Map(MapError),
+    /// More beacons than the output set holds; nothing is returned.
+    TooManyBeacons,
+}
+
+/// Counts of one collection's work.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct CollectStats {
+    /// Grid cells visited.
+    pub cells: u32,
+    /// Candidate pieces from the grid.
+    pub candidates: u32,
+    /// Pseudo-path × piece tests run (0 for the exact strategy).
+    pub path_tests: u32,
+    /// Exact piece × sector tests run (0 for pseudo-paths).
+    pub sector_tests: u32,
+}
+
+/// A window placed in the map: the sector and its pseudo-path end points.
+#[derive(Clone, Debug)]
+pub struct Window {
+    /// The annular sector.
+    pub sector: Sector,
+    /// Pseudo-path end points in the map frame, mm.
+    pub paths: Vec<Point, MAX_PSEUDO_PATHS>,
+    /// The parameters it was placed with.
+    pub params: WindowParams,
+}
+
+impl Window {
+    /// Places the window of `params` at `apex`, looking along `heading_rad`.
+    pub fn place(params: &WindowParams, apex: Point, heading_rad: f32) -> Result<Self, WindowError> {
+        params.validate()?;
+        let sector =
+            Sector::new(apex, heading_rad, params.half_angle_deg.to_radians(), params.r_min_mm, params.r_max_mm)?;
+        let mut paths = Vec::new();
+        for k in 0..params.n_pp()? {
+            let (x, y) = params.endpoint(k)?;
+            // n_pp() ≤ MAX_PSEUDO_PATHS, checked above.
+            let _ = paths.push(sector.to_map(x, y));
+        }
+        Ok(Self { sector, paths, params: *params })
+    }
+}
+
+/// Collects into `out` (cleared first) the ids of the pieces in the window,
+/// in grid order. On error `out` is left empty.
+pub fn collect_beacons<const P: usize, const V: usize, const C: usize, const R: usize, const B: usize>(
+    map: &Map<P, V, C, R>,
+    window: &Window,
+    strategy: Strategy,
+    out: &mut Vec<u16, B>,
+) -> Result<CollectStats, CollectError> {
+    out.clear();
+    let mut stats = CollectStats::default();
+    let mut full = false;
+    let o = window.sector.apex;
+    let q = map
+        .for_each_candidate(window.sector.bbox(), |p| {
+            let hit = match strategy {
+                Strategy::PseudoPaths => {
+                    let shape = p.buffered;
+                    let to = shape.tvector(o);
+                    let mut hit = false;
+                    for &g in &window.paths {
+                        stats.path_tests += 1;
+                        if shape.hits_segment_with(o, to, g, shape.tvector(g)) {
+                            hit = true;
+                            break;
+                        }
+                    }
+                    hit
+                }
+                Strategy::Exact => {
+                    stats.sector_tests += 1;
+                    window.sector.meets(p.shape)
+                }
+            };
+            if hit && out.push(p.id).is_err() {
+                full = true;
+            }
+        })
+        .map_err(CollectError::Map)?;
+    stats.cells = q.cells;
+    stats.candidates = q.candidates;
+    if full {
+        out.clear();
+        return Err(CollectError::TooManyBeacons);
+    }
+    Ok(stats)
+}
+

@@ -1,0 +1,192 @@
+//! The sensor window's parameters and the pseudo-path layout, eq. (1)–(6) as
+//! DESIGN §4.1 reads them.
+
+/// Most pseudo-paths a window may have (the paper's Example 1 needs 175).
+pub const MAX_PSEUDO_PATHS: usize = 256;
+/// Largest `R_max`, mm (100 m): far beyond any sonar.
+pub const MAX_RANGE_MM: u32 = 100_000;
+
+/// Why window parameters were refused.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum WindowError {
+    /// `R_min ≥ R_max`, or `R_max` zero or above [`MAX_RANGE_MM`].
+    BadRange,
+    /// Half-angle `θ_o` not in `(0°, 90°)` (the window must be a convex wedge).
+    BadHalfAngle,
+    /// `δ_max` not in `[0°, 90°)`.
+    BadDeltaMax,
+    /// `d_s_min` is zero: no pseudo-path spacing can be derived.
+    ZeroSurface,
+    /// The layout needs more than [`MAX_PSEUDO_PATHS`] pseudo-paths.
+    TooManyPseudoPaths(u32),
+}
+
+/// A sonar's window and the map's smallest detectable surface.
+///
+/// ```
+/// use echoloc::window::WindowParams;
+/// // The paper's Example 2: R_max 240 cm, θ_o 35°, d_s_min = t_b = 75 cm, δ_max 15°.
+/// let p = WindowParams { r_min_mm: 0, r_max_mm: 2400, half_angle_deg: 35.0, delta_max_deg: 15.0, ds_min_mm: 750, tb_mm: 750 };
+/// assert_eq!(p.n_pp().unwrap(), 4);
+/// ```
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct WindowParams {
+    /// `R_min`: nearest range the sonar reports (blanking), mm.
+    pub r_min_mm: u32,
+    /// `R_max`: farthest range, mm.
+    pub r_max_mm: u32,
+    /// `θ_o`: the window's half-angle, degrees.
+    pub half_angle_deg: f32,
+    /// `δ_max`: largest cone arc deviation that still returns an echo, degrees.
+    pub delta_max_deg: f32,
+    /// `d_s_min`: smallest surface that must be detected, mm.
+    pub ds_min_mm: u32,
+    /// `t_b`: the C-space buffer of the map's pieces, mm (0: unbuffered).
+    pub tb_mm: u32,
+}
+
+impl WindowParams {
+    /// MARGE's sonar (paper §4.2): `R_min` 500 mm, `R_max` 5500 mm, `θ_o`
+    /// 30°, with `δ_max` 15°, `d_s_min` and `t_b` both 300 mm.
+    pub const MARGE: WindowParams =
+        WindowParams { r_min_mm: 500, r_max_mm: 5500, half_angle_deg: 30.0, delta_max_deg: 15.0, ds_min_mm: 300, tb_mm: 300 };
+
+    /// Checks every field.
+    pub fn validate(&self) -> Result<(), WindowError> {
+        if self.r_max_mm == 0 || self.r_max_mm > MAX_RANGE_MM || self.r_min_mm >= self.r_max_mm {
+            return Err(WindowError::BadRange);
+        }
+        let h = self.half_angle_deg;
+        if !(h > 0.0 && h < 90.0) {
+            return Err(WindowError::BadHalfAngle);
+        }
+        let d = self.delta_max_deg;
+        if !(d >= 0.0 && d < 90.0) {
+            return Err(WindowError::BadDeltaMax);
+        }
+        if self.ds_min_mm == 0 {
+            return Err(WindowError::ZeroSurface);
+        }
+        Ok(())
+    }
+
+    /// Eq. (1): `w_min = d_s_min · cos δ_max`, mm.
+    pub fn w_min_mm(&self) -> f32 {
+        self.ds_min_mm as f32 * libm::cosf(self.delta_max_deg.to_radians())
+    }
+
+    /// `I_b` of eq. (3): +1 unbuffered, −1 buffered.
+    pub const fn i_b(&self) -> i32 {
+        if self.tb_mm == 0 {
+            1
+        } else {
+            -1
+        }
+    }
+
+    fn span_mm(&self) -> f32 {
+        2.0 * self.r_max_mm as f32 * libm::tanf(self.half_angle_deg.to_radians())
+    }
+
+    /// Eq. (2): `N_pp = ⌈2 R_max tan θ_o / w_min⌉ + I_b`. When a buffered
+    /// window would get no path at all (`⌈…⌉ = 1`), one path, the axis, is
+    /// kept: a window must search somewhere (our erratum).
+    pub fn n_pp(&self) -> Result<u32, WindowError> {
+        self.validate()?;
+        let q = libm::ceilf(self.span_mm() / self.w_min_mm()) as i64;
+        let n = (q + self.i_b() as i64).max(1);
+        if n > MAX_PSEUDO_PATHS as i64 {
+            return Err(WindowError::TooManyPseudoPaths(n.min(u32::MAX as i64) as u32));
+        }
+        Ok(n as u32)
+    }
+
+    /// Eq. (4) without the misprinted ceiling: `w = 2 R_max tan θ_o / (N_pp − I_b)`, mm.
+    pub fn w_mm(&self) -> Result<f32, WindowError> {
+        let n = self.n_pp()? as i32;
+        Ok(self.span_mm() / (n - self.i_b()).max(1) as f32)
+    }
+
+    /// Eq. (5)–(6) as DESIGN reads them: the end point of pseudo-path `k`
+    /// (`0 ≤ k < N_pp`) in the sensor frame (x lateral, y along the normal),
+    /// mm. Unbuffered: `x = R tan θ_o − k·w` (both cone edges included);
+    /// buffered: `x = R tan θ_o − (k+1)·w` (interior paths). All at `y = R_max`.
+    pub fn endpoint(&self, k: u32) -> Result<(f32, f32), WindowError> {
+        let w = self.w_mm()?;
+        let half = self.span_mm() / 2.0;
+        let n = if self.tb_mm == 0 { k as f32 } else { (k + 1) as f32 };
+        Ok((half - n * w, self.r_max_mm as f32))
+    }
+
+    /// Whether the pseudo-path strategy is guaranteed to collect every piece
+    /// whose true outline meets the window: every point of the window lies
+    /// within `w` of some path (at the far end, between two paths or between
+    /// the outermost path and the cone edge), so a buffer `t_b ≥ w` (plus
+    /// 2 mm for rounding the window into integer millimetres) makes every such
+    /// piece's buffered outline cross a path. Example 2 satisfies it
+    /// (`t_b = d_s_min ≥ w_min ≥ w`).
+    pub fn pseudo_paths_complete(&self) -> bool {
+        match self.w_mm() {
+            Ok(w) => self.tb_mm as f32 >= w + 2.0,
+            Err(_) => false,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn example(ds: u32, tb: u32) -> WindowParams {
+        WindowParams { r_min_mm: 0, r_max_mm: 2400, half_angle_deg: 35.0, delta_max_deg: 15.0, ds_min_mm: ds, tb_mm: tb }
+    }
+
+    #[test]
+    fn example_2_gives_four_pseudo_paths() {
+        let p = example(750, 750);
+        assert_eq!(p.n_pp().unwrap(), 4);
+        let w = p.w_mm().unwrap();
+        assert!((w - 3361.03 / 5.0).abs() < 0.1, "w = {w}");
+        assert!(w <= p.w_min_mm());
+        // Interior paths only, symmetric about the axis.
+        let xs: [f32; 4] = core::array::from_fn(|k| p.endpoint(k as u32).unwrap().0);
+        assert!((xs[0] + xs[3]).abs() < 0.01 && (xs[1] + xs[2]).abs() < 0.01);
+        assert!((xs[0] - (1680.5 - w)).abs() < 0.2);
+        assert!(p.pseudo_paths_complete(), "t_b = 750 ≥ w = {w}");
+    }
+
+    #[test]
+    fn example_1_gives_175_by_eq_2_where_the_paper_prints_174() {
+        // d_s_min 2 cm, t_b = 0: ⌈2·2400·tan 35° / (20·cos 15°)⌉ = ⌈173.98⌉ = 174,
+        // plus I_b = +1. The paper's 174 leaves out I_b.
+        let p = example(20, 0);
+        let q = libm::ceilf(2.0 * 2400.0 * libm::tanf(35f32.to_radians()) / p.w_min_mm());
+        assert_eq!(q, 174.0);
+        assert_eq!(p.n_pp().unwrap(), 175);
+        // Unbuffered: both cone edges are paths.
+        let first = p.endpoint(0).unwrap().0;
+        let last = p.endpoint(174).unwrap().0;
+        assert!((first - 1680.5).abs() < 0.5 && (last + 1680.5).abs() < 0.5, "{first} {last}");
+        assert!(!p.pseudo_paths_complete());
+    }
+
+    #[test]
+    fn a_buffered_window_keeps_at_least_the_axis() {
+        let p = WindowParams { ds_min_mm: 10_000, ..example(750, 750) };
+        assert_eq!(p.n_pp().unwrap(), 1);
+        assert!(p.endpoint(0).unwrap().0.abs() < 0.01);
+    }
+
+    #[test]
+    fn bad_parameters_are_refused() {
+        let ok = example(750, 750);
+        assert_eq!(WindowParams { r_min_mm: 2400, ..ok }.validate(), Err(WindowError::BadRange));
+        assert_eq!(WindowParams { half_angle_deg: 90.0, ..ok }.validate(), Err(WindowError::BadHalfAngle));
+        assert_eq!(WindowParams { half_angle_deg: f32::NAN, ..ok }.validate(), Err(WindowError::BadHalfAngle));
+        assert_eq!(WindowParams { delta_max_deg: -1.0, ..ok }.validate(), Err(WindowError::BadDeltaMax));
+        assert_eq!(WindowParams { ds_min_mm: 0, ..ok }.validate(), Err(WindowError::ZeroSurface));
+        assert!(matches!(WindowParams { ds_min_mm: 1, tb_mm: 0, ..ok }.n_pp(), Err(WindowError::TooManyPseudoPaths(_))));
+    }
+}

@@ -1,0 +1,377 @@
+//! A window placed in the map: an annular sector with an integer apex and
+//! integer edge directions, and the exact tests on it.
+//!
+//! The wedge `|φ| ≤ θ_o` is bounded by two rays whose directions are integer
+//! vectors of length about 2¹⁴ (angles resolved to 0.0035°); membership and
+//! clipping are then exact rational arithmetic, with squared distances of
+//! clipped points compared in 256 bits ([`U256`]). Floats only place the
+//! window (trigonometry of the heading) and report positions.
+
+use crate::geometry::{cross, dot, Convex, Point, Rect, U256};
+
+use super::WindowError;
+
+/// Length of the integer direction vectors.
+const DIR_SCALE: f32 = 16384.0;
+
+/// A rational parameter `num / den` along an edge, `den > 0`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct Frac {
+    num: i128,
+    den: i128,
+}
+
+impl Frac {
+    const ZERO: Frac = Frac { num: 0, den: 1 };
+    const ONE: Frac = Frac { num: 1, den: 1 };
+    fn lt(self, o: Frac) -> bool {
+        self.num * o.den < o.num * self.den
+    }
+    fn to_f64(self) -> f64 {
+        self.num as f64 / self.den as f64
+    }
+}
+
+/// The part `[lo, hi]` of an edge `a + s·e`, `s ∈ [0, 1]`, inside the wedge.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Clip {
+    lo: Frac,
+    hi: Frac,
+}
+
+/// A sensor window in the map frame.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Sector {
+    /// The transducer's position, mm.
+    pub apex: Point,
+    /// The transducer's heading in the map frame, radians (counter-clockwise from +x).
+    pub heading_rad: f32,
+    /// `θ_o`, radians.
+    pub half_angle_rad: f32,
+    /// `R_min`, mm.
+    pub r_min_mm: u32,
+    /// `R_max`, mm.
+    pub r_max_mm: u32,
+    axis: (i64, i64),
+    left: (i64, i64),
+    right: (i64, i64),
+}
+
+fn dir(angle: f32) -> (i64, i64) {
+    (libm::roundf(libm::cosf(angle) * DIR_SCALE) as i64, libm::roundf(libm::sinf(angle) * DIR_SCALE) as i64)
+}
+
+impl Sector {
+    /// A window at `apex` looking along `heading_rad`, half-angle
+    /// `half_angle_rad` (in `(0, π/2)`), ranges `r_min_mm ..= r_max_mm`.
+    pub fn new(
+        apex: Point,
+        heading_rad: f32,
+        half_angle_rad: f32,
+        r_min_mm: u32,
+        r_max_mm: u32,
+    ) -> Result<Self, WindowError> {
+        if !(half_angle_rad > 0.0 && half_angle_rad < core::f32::consts::FRAC_PI_2) {
+            return Err(WindowError::BadHalfAngle);
+        }
+        if r_max_mm == 0 || r_max_mm > super::MAX_RANGE_MM || r_min_mm >= r_max_mm || !heading_rad.is_finite() {
+            return Err(WindowError::BadRange);
+        }
+        let reach = r_max_mm as i64 + 2;
+        let lim = crate::geometry::COORD_MAX as i64;
+        if (apex.x as i64).abs() + reach > lim || (apex.y as i64).abs() + reach > lim {
+            return Err(WindowError::BadRange);
+        }
+        Ok(Self {
+            apex,
+            heading_rad,
+            half_angle_rad,
+            r_min_mm,
+            r_max_mm,
+            axis: dir(heading_rad),
+            left: dir(heading_rad + half_angle_rad),
+            right: dir(heading_rad - half_angle_rad),
+        })
+    }
+
+    /// Whether a vector from the apex lies in the closed wedge `|φ| ≤ θ_o`.
+    #[inline]
+    fn in_wedge(&self, v: (i64, i64)) -> bool {
+        cross(self.right, v) >= 0 && cross(v, self.left) >= 0
+    }
+
+    /// Exact: whether `p` lies in the closed annular sector.
+    pub fn contains(&self, p: Point) -> bool {
+        let v = p.sub(self.apex);
+        let d2 = dot(v, v);
+        let (rmin, rmax) = (self.r_min_mm as i64, self.r_max_mm as i64);
+        self.in_wedge(v) && d2 >= rmin * rmin && d2 <= rmax * rmax
+    }
+
+    /// A box holding the whole sector (conservative by a millimetre).
+    pub fn bbox(&self) -> Rect {
+        let r = self.r_max_mm as f32 + 1.0;
+        let mut b = Rect::around(self.apex);
+        let at = |a: f32| {
+            Point::new(
+                self.apex.x + libm::roundf(libm::cosf(a) * r) as i32,
+                self.apex.y + libm::roundf(libm::sinf(a) * r) as i32,
+            )
+        };
+        let (lo, hi) = (self.heading_rad - self.half_angle_rad, self.heading_rad + self.half_angle_rad);
+        b = b.union_point(at(lo)).union_point(at(hi));
+        // Axis-aligned extremes of the arc that fall inside the wedge.
+        let mut k = libm::ceilf(lo / core::f32::consts::FRAC_PI_2);
+        while k * core::f32::consts::FRAC_PI_2 <= hi {
+            b = b.union_point(at(k * core::f32::consts::FRAC_PI_2));
+            k += 1.0;
+        }
+        Rect { min: Point::new(b.min.x - 1, b.min.y - 1), max: Point::new(b.max.x + 1, b.max.y + 1) }
+    }
+
+    /// The map point at sensor-frame coordinates `(x lateral, y along the
+    /// normal)`, rounded to the millimetre. Lateral `x` points to the right
+    /// of the heading.
+    pub fn to_map(&self, x: f32, y: f32) -> Point {
+        let (c, s) = (libm::cosf(self.heading_rad), libm::sinf(self.heading_rad));
+        Point::new(
+            self.apex.x + libm::roundf(x * s + y * c) as i32,
+            self.apex.y + libm::roundf(-x * c + y * s) as i32,
+        )
+    }
+
+    /// The unit vector of the axis (map frame).
+    pub fn axis_unit(&self) -> (f32, f32) {
+        (libm::cosf(self.heading_rad), libm::sinf(self.heading_rad))
+    }
+
+    /// Clips edge `a → b` to the wedge (not yet to the ranges).
+    pub(crate) fn clip_edge(&self, a: Point, b: Point) -> Option<Clip> {
+        let ao = a.sub(self.apex);
+        let e = b.sub(a);
+        let (mut lo, mut hi) = (Frac::ZERO, Frac::ONE);
+        // Constraints c0 + s·c1 ≥ 0.
+        for (c0, c1) in [(cross(self.right, ao), cross(self.right, e)), (cross(ao, self.left), cross(e, self.left))] {
+            let (c0, c1) = (c0 as i128, c1 as i128);
+            if c1 == 0 {
+                if c0 < 0 {
+                    return None;
+                }
+            } else if c1 > 0 {
+                let f = Frac { num: -c0, den: c1 };
+                if lo.lt(f) {
+                    lo = f;
+                }
+            } else {
+                let f = Frac { num: c0, den: -c1 };
+                if f.lt(hi) {
+                    hi = f;
+                }
+            }
+        }
+        if hi.lt(lo) {
+            return None;
+        }
+        Some(Clip { lo, hi })
+    }
+
+    /// Compares the distance from the apex of the point `a + s·e` with `r`:
+    /// `|(a−o)·den + num·e|²` against `r²·den²`, in 256 bits.
+    fn cmp_dist(&self, a: Point, e: (i64, i64), s: Frac, r: u32) -> core::cmp::Ordering {
+        let ao = a.sub(self.apex);
+        let x = ao.0 as i128 * s.den + s.num * e.0 as i128;
+        let y = ao.1 as i128 * s.den + s.num * e.1 as i128;
+        let lhs = U256::square(x).add(U256::square(y));
+        let r2 = (r as u128) * (r as u128);
+        let d2 = s.den.unsigned_abs() * s.den.unsigned_abs();
+        lhs.cmp(&U256::mul(r2, d2))
+    }
+
+    fn at_least(&self, a: Point, e: (i64, i64), s: Frac, r: u32) -> bool {
+        self.cmp_dist(a, e, s, r).is_ge()
+    }
+
+    /// Exact: does the closed edge `a → b` contain a point of the sector?
+    pub fn edge_meets(&self, a: Point, b: Point) -> bool {
+        let Some(c) = self.clip_edge(a, b) else {
+            return false;
+        };
+        let e = b.sub(a);
+        // Far end: the farther clipped end must reach R_min.
+        let far_ok = self.at_least(a, e, c.lo, self.r_min_mm) || self.at_least(a, e, c.hi, self.r_min_mm);
+        far_ok && self.nearest_within(a, e, c, self.r_max_mm)
+    }
+
+    /// Whether the clipped edge's nearest point to the apex is within `r`.
+    fn nearest_within(&self, a: Point, e: (i64, i64), c: Clip, r: u32) -> bool {
+        let oa = self.apex.sub(a);
+        let ee = dot(e, e) as i128;
+        if ee == 0 {
+            return self.cmp_dist(a, e, c.lo, r).is_le();
+        }
+        let foot = Frac { num: dot(oa, e) as i128, den: ee };
+        let s = if foot.lt(c.lo) {
+            c.lo
+        } else if c.hi.lt(foot) {
+            c.hi
+        } else {
+            // The foot: squared distance cross²/|e|², exact in u128.
+            let cr = cross(e, oa) as i128;
+            let lhs = cr.unsigned_abs() * cr.unsigned_abs();
+            let rhs = (r as u128) * (r as u128) * (ee as u128);
+            return lhs <= rhs;
+        };
+        self.cmp_dist(a, e, s, r).is_le()
+    }
+
+    /// Exact: does the closed piece share a point with the closed sector?
+    ///
+    /// `P ∩ W` (the piece cut by the wedge) is convex, so the distances of its
+    /// points from the apex form an interval; the piece meets the sector when
+    /// that interval meets `[R_min, R_max]`. Its extremes lie on the piece's
+    /// edges clipped to the wedge (or at the apex, when the apex is inside).
+    pub fn meets(&self, piece: Convex<'_>) -> bool {
+        let apex_inside = piece.tvector(self.apex).is_inside();
+        let (mut near, mut far) = (apex_inside, false);
+        for i in 0..piece.edge_count() {
+            let (a, b) = piece.edge(i);
+            let Some(c) = self.clip_edge(a, b) else { continue };
+            let e = b.sub(a);
+            if !far {
+                far = self.at_least(a, e, c.lo, self.r_min_mm) || self.at_least(a, e, c.hi, self.r_min_mm);
+            }
+            if !near {
+                near = self.nearest_within(a, e, c, self.r_max_mm);
+            }
+            if near && far {
+                return true;
+            }
+        }
+        false
+    }
+
+    /// The nearest point of the piece inside the wedge within `R_max`
+    /// (ignoring `R_min`), as (distance, point relative to the map origin),
+    /// in `f64`; `None` if none. This is `predict --geometric`.
+    pub fn nearest(&self, piece: Convex<'_>) -> Option<(f64, (f64, f64))> {
+        let o = (self.apex.x as f64, self.apex.y as f64);
+        if piece.tvector(self.apex).is_inside() {
+            return Some((0.0, o));
+        }
+        let mut best: Option<(f64, (f64, f64))> = None;
+        for i in 0..piece.edge_count() {
+            let (a, b) = piece.edge(i);
+            let Some(c) = self.clip_edge(a, b) else { continue };
+            let e = b.sub(a);
+            let ee = dot(e, e) as f64;
+            let oa = self.apex.sub(a);
+            let (lo, hi) = (c.lo.to_f64(), c.hi.to_f64());
+            let s = if ee == 0.0 { lo } else { (dot(oa, e) as f64 / ee).clamp(lo, hi) };
+            let p = (a.x as f64 + s * e.0 as f64, a.y as f64 + s * e.1 as f64);
+            let d = libm::hypot(p.0 - o.0, p.1 - o.1);
+            if best.is_none_or(|(bd, _)| d < bd) {
+                best = Some((d, p));
+            }
+        }
+        // Exact decision on R_max (the f64 distance only reports it).
+        let inside = (0..piece.edge_count()).any(|i| {
+            let (a, b) = piece.edge(i);
+            self.clip_edge(a, b).is_some_and(|c| self.nearest_within(a, b.sub(a), c, self.r_max_mm))
+        });
+        if inside {
+            best
+        } else {
+            None
+        }
+    }
+
+    /// The wedge part `[lo, hi]` of edge `a → b` as `f32` parameters, if any.
+    pub(crate) fn clip_edge_f32(&self, a: Point, b: Point) -> Option<(f32, f32)> {
+        self.clip_edge(a, b).map(|c| (c.lo.to_f64() as f32, c.hi.to_f64() as f32))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    const fn p(x: i32, y: i32) -> Point {
+        Point::new(x, y)
+    }
+
+    fn east() -> Sector {
+        // At the origin, looking along +x, ±30°, 500..5000 mm.
+        Sector::new(p(0, 0), 0.0, 30f32.to_radians(), 500, 5000).unwrap()
+    }
+
+    #[test]
+    fn membership() {
+        let s = east();
+        assert!(s.contains(p(1000, 0)));
+        assert!(!s.contains(p(400, 0)), "inside R_min");
+        assert!(s.contains(p(500, 0)) && s.contains(p(5000, 0)), "closed ranges");
+        assert!(!s.contains(p(5001, 0)));
+        assert!(s.contains(p(1000, 577)) && !s.contains(p(1000, 578)), "tan 30° = 0.57735");
+        assert!(!s.contains(p(-1000, 0)));
+    }
+
+    #[test]
+    fn pieces_meet_the_sector_exactly() {
+        let s = east();
+        // A wall across the axis at x = 3000.
+        let w = [p(3000, -100), p(3000, 100)];
+        assert!(s.meets(Convex::new(&w).unwrap()));
+        // Beyond R_max, and just within it.
+        let far = [p(5001, -10), p(5001, 10)];
+        assert!(!s.meets(Convex::new(&far).unwrap()));
+        let edge = [p(5000, -10), p(5000, 10)];
+        assert!(s.meets(Convex::new(&edge).unwrap()), "touching the arc at (5000, 0)");
+        // Inside R_min only.
+        let near = [p(100, -10), p(100, 10)];
+        assert!(!s.meets(Convex::new(&near).unwrap()));
+        // A piece that straddles R_min: clipped edges reach beyond it.
+        let sq = [p(300, -50), p(700, -50), p(700, 50), p(300, 50)];
+        assert!(s.meets(Convex::new(&sq).unwrap()));
+        // Outside the wedge, though within range.
+        let side = [p(1000, 700), p(1100, 700), p(1100, 800), p(1000, 800)];
+        assert!(!s.meets(Convex::new(&side).unwrap()));
+        // A piece that contains the apex and reaches out of R_min.
+        let around = [p(-100, -100), p(800, -100), p(800, 100), p(-100, 100)];
+        assert!(s.meets(Convex::new(&around).unwrap()));
+        // Contains the apex but everything of it in the wedge is nearer than R_min.
+        let small = [p(-100, -100), p(300, -100), p(300, 100), p(-100, 100)];
+        assert!(!s.meets(Convex::new(&small).unwrap()));
+        // A long wall passing beside the window: its nearest point is outside
+        // the wedge, but part of it lies inside at range.
+        let pass = [p(-3000, 1500), p(6000, 1500)];
+        assert!(s.meets(Convex::new(&pass).unwrap()), "(2598..4770, 1500) is inside");
+        let pass_far = [p(-3000, 2600), p(6000, 2600)];
+        assert!(!s.meets(Convex::new(&pass_far).unwrap()), "y = 2600 meets the wedge only beyond 5000 mm");
+    }
+
+    #[test]
+    fn nearest_point_in_the_wedge() {
+        let s = east();
+        let w = [p(3000, -100), p(3000, 100)];
+        let (d, q) = s.nearest(Convex::new(&w).unwrap()).unwrap();
+        assert!((d - 3000.0).abs() < 1e-9 && q == (3000.0, 0.0));
+        // Nearest point clipped to the wedge's edge.
+        let wall = [p(-3000, 1500), p(6000, 1500)];
+        let (d, _) = s.nearest(Convex::new(&wall).unwrap()).unwrap();
+        assert!((d - 3000.0).abs() < 1.0, "1500 / sin 30° = 3000, got {d}");
+    }
+
+    #[test]
+    fn bbox_holds_the_sector() {
+        for h in [0.0f32, 0.7, 1.6, 3.0, -2.2, 5.5] {
+            let s = Sector::new(p(100, -200), h, 0.6, 0, 3000).unwrap();
+            let b = s.bbox();
+            for k in 0..=64 {
+                let a = h - 0.6 + 1.2 * k as f32 / 64.0;
+                let q = p(100 + (libm::cosf(a) * 3000.0) as i32, -200 + (libm::sinf(a) * 3000.0) as i32);
+                assert!(b.contains(q), "heading {h}: {q:?} outside {b:?}");
+            }
+            assert!(b.contains(p(100, -200)));
+        }
+    }
+}
