@@ -6,12 +6,14 @@
 //! whether two things meet) are made with these exact integers.
 
 mod convex;
+mod holes;
 mod point;
 mod predicates;
 mod split;
 mod wide;
 
 pub use convex::{Convex, ConvexError, MAX_BUFFERED_VERTICES, MAX_PIECE_VERTICES};
+pub use holes::{split_convex_with_holes, HolesError, Ring};
 pub use point::{Point, Rect, Segment, COORD_MAX};
 pub use predicates::{cross, dot, orient, point_on_segment, segments_intersect, Side};
 pub use split::{split_convex, SplitError};

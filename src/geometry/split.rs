@@ -53,7 +53,7 @@ const NONE: u16 = u16::MAX;
 pub fn split_convex<const N: usize, E>(
     poly: &[Point],
     max_piece_vertices: usize,
-    mut emit: impl FnMut(&[Point]) -> Result<(), E>,
+    emit: impl FnMut(&[Point]) -> Result<(), E>,
 ) -> Result<usize, SplitError<E>> {
     let maxv = max_piece_vertices.clamp(3, MAX_PIECE_VERTICES);
     if poly.len() > N || N > NONE as usize {
@@ -68,22 +68,7 @@ pub fn split_convex<const N: usize, E>(
         // Capacity checked above.
         let _ = pts.push(p);
     }
-    loop {
-        let before = pts.len();
-        let mut i = 0;
-        while pts.len() >= 3 && i < pts.len() {
-            let m = pts.len();
-            let (a, b, c) = (pts[(i + m - 1) % m], pts[i], pts[(i + 1) % m]);
-            if a == b || orient(a, b, c) == 0 {
-                pts.remove(i);
-            } else {
-                i += 1;
-            }
-        }
-        if pts.len() == before {
-            break;
-        }
-    }
+    clean_ring(&mut pts, 0);
     let n = pts.len();
     if n < 3 {
         return Err(SplitError::Degenerate);
@@ -100,14 +85,72 @@ pub fn split_convex<const N: usize, E>(
         }
     }
     // 3. Orientation (i128: the sum of many i64 terms may exceed i64).
-    let area2: i128 = (1..n - 1).map(|i| orient(pts[0], pts[i], pts[i + 1]) as i128).sum();
+    let area2 = ring_area2(&pts);
     if area2 == 0 {
         return Err(SplitError::Degenerate);
     }
     if area2 < 0 {
         pts.reverse();
     }
-    // 4. Ear clipping, remembering which triangle lies across each chain edge
+    clip_and_merge::<N, E>(&pts, maxv, emit).map_err(|e| match e {
+        ClipError::NoEar => SplitError::NoEar,
+        ClipError::Sink(e) => SplitError::Sink(e),
+    })
+}
+
+/// Twice the signed area of a ring (positive when counter-clockwise), exact.
+pub(super) fn ring_area2(ring: &[Point]) -> i128 {
+    let n = ring.len();
+    if n < 3 {
+        return 0;
+    }
+    (1..n - 1).map(|i| orient(ring[0], ring[i], ring[i + 1]) as i128).sum()
+}
+
+/// Drops repeated and collinear vertices (straight runs and zero-width
+/// spikes) from the cyclic ring `pts[from..]` until none is left.
+pub(super) fn clean_ring<const N: usize>(pts: &mut Vec<Point, N>, from: usize) {
+    loop {
+        let before = pts.len();
+        let mut i = 0;
+        while pts.len() - from >= 3 && i < pts.len() - from {
+            let m = pts.len() - from;
+            let (a, b, c) = (pts[from + (i + m - 1) % m], pts[from + i], pts[from + (i + 1) % m]);
+            if a == b || orient(a, b, c) == 0 {
+                pts.remove(from + i);
+            } else {
+                i += 1;
+            }
+        }
+        if pts.len() == before {
+            break;
+        }
+    }
+}
+
+/// Why [`clip_and_merge`] stopped.
+pub(super) enum ClipError<E> {
+    NoEar,
+    Sink(E),
+}
+
+/// Ear clipping, then Hertel–Mehlhorn merging, of the counter-clockwise ring
+/// `pts`. The ring may be *weakly* simple — the output of bridging holes
+/// into an outer ring: two vertices may share a position (a bridge's ends
+/// appear twice) as long as the polygon's interior wedges there do not
+/// overlap and no vertex lies inside another edge. Hands each strictly convex
+/// counter-clockwise piece (at most `maxv` vertices) to `emit`; returns the
+/// number of pieces.
+pub(super) fn clip_and_merge<const N: usize, E>(
+    pts: &[Point],
+    maxv: usize,
+    mut emit: impl FnMut(&[Point]) -> Result<(), E>,
+) -> Result<usize, ClipError<E>> {
+    let n = pts.len();
+    if n < 3 || n > N {
+        return Err(ClipError::NoEar);
+    }
+    // Ear clipping, remembering which triangle lies across each chain edge
     // so that the diagonals (and the triangles on both sides) are known.
     let mut rem: Vec<u16, N> = (0..n as u16).collect();
     let mut across: Vec<u16, N> = (0..n).map(|_| NONE).collect();
@@ -121,23 +164,32 @@ pub fn split_convex<const N: usize, E>(
         let m = rem.len();
         i %= m;
         let (ip, ii, iq) = (rem[(i + m - 1) % m], rem[i], rem[(i + 1) % m]);
-        let o = orient(at(ip), at(ii), at(iq));
-        if o == 0 {
-            // A collinear vertex left by an earlier clip: drop it; the merged
-            // chain edge loses its neighbour (no diagonal to merge across).
+        let (a, b, c) = (at(ip), at(ii), at(iq));
+        let o = orient(a, b, c);
+        if o == 0 && (a == b || b == c || super::dot(b.sub(a), c.sub(b)) <= 0) {
+            // A repeated vertex or a zero-width spike (left by an earlier
+            // clip, or where a bridge folds back): dropping it changes no
+            // area. The merged chain edge loses its neighbour (no diagonal
+            // to merge across).
             rem.remove(i);
             across[ip as usize] = NONE;
             misses = 0;
             continue;
         }
+        // A straight vertex (o == 0, b strictly between a and c) is no ear
+        // tip; it stays, so that no other vertex ends up inside an edge.
+        // Other vertices at a corner's position (a bridge's twin) cannot
+        // reach into the triangle: their wedges lie outside this corner's.
         let is_ear = o > 0
             && rem.iter().all(|&r| {
+                let p = at(r);
                 r == ip
                     || r == ii
                     || r == iq
-                    || !(orient(at(ip), at(ii), at(r)) >= 0
-                        && orient(at(ii), at(iq), at(r)) >= 0
-                        && orient(at(iq), at(ip), at(r)) >= 0)
+                    || p == a
+                    || p == b
+                    || p == c
+                    || !(orient(a, b, p) >= 0 && orient(b, c, p) >= 0 && orient(c, a, p) >= 0)
             });
         if is_ear {
             let t = tris.len() as u16;
@@ -156,11 +208,19 @@ pub fn split_convex<const N: usize, E>(
             i += 1;
             misses += 1;
             if misses > m {
-                return Err(SplitError::NoEar);
+                // Only straight vertices left (no area): done. Anything
+                // else is a guard that a valid input never reaches.
+                let p0 = at(rem[0]);
+                let p1 = rem.iter().map(|&k| at(k)).find(|&p| p != p0).unwrap_or(p0);
+                if rem.iter().all(|&k| orient(p0, p1, at(k)) == 0) {
+                    rem.clear();
+                    break;
+                }
+                return Err(ClipError::NoEar);
             }
         }
     }
-    if orient(at(rem[0]), at(rem[1]), at(rem[2])) > 0 {
+    if rem.len() == 3 && orient(at(rem[0]), at(rem[1]), at(rem[2])) > 0 {
         let t = tris.len() as u16;
         let _ = tris.push([rem[0], rem[1], rem[2]]);
         for k in 0..3 {
@@ -170,7 +230,7 @@ pub fn split_convex<const N: usize, E>(
             }
         }
     }
-    // 5. Hertel–Mehlhorn: merge across each diagonal while convex.
+    // Hertel–Mehlhorn: merge across each diagonal while convex.
     let mut pieces: Vec<Vec<u16, MAX_PIECE_VERTICES>, N> =
         tris.iter().map(|t| Vec::from_slice(t).unwrap_or_default()).collect();
     let mut parent: Vec<u16, N> = (0..tris.len() as u16).collect();
@@ -187,13 +247,13 @@ pub fn split_convex<const N: usize, E>(
         if a == b {
             continue;
         }
-        if let Some(merged) = merge(&pts, &pieces[a as usize], &pieces[b as usize], u, v, maxv) {
+        if let Some(merged) = merge(pts, &pieces[a as usize], &pieces[b as usize], u, v, maxv) {
             pieces[a as usize] = merged;
             pieces[b as usize].clear();
             parent[b as usize] = a;
         }
     }
-    // 6. Emit.
+    // Emit.
     let mut count = 0;
     let mut buf: Vec<Point, MAX_PIECE_VERTICES> = Vec::new();
     for piece in pieces.iter().filter(|p| !p.is_empty()) {
@@ -201,7 +261,7 @@ pub fn split_convex<const N: usize, E>(
         for &k in piece {
             let _ = buf.push(at(k));
         }
-        emit(&buf).map_err(SplitError::Sink)?;
+        emit(&buf).map_err(ClipError::Sink)?;
         count += 1;
     }
     Ok(count)
@@ -209,14 +269,7 @@ pub fn split_convex<const N: usize, E>(
 
 /// Merges convex pieces `a` (holding edge u→v) and `b` (holding v→u) if the
 /// union is convex and small enough; collinear vertices at u or v are dropped.
-fn merge<const N: usize>(
-    pts: &Vec<Point, N>,
-    a: &[u16],
-    b: &[u16],
-    u: u16,
-    v: u16,
-    maxv: usize,
-) -> Option<Vec<u16, MAX_PIECE_VERTICES>> {
+fn merge(pts: &[Point], a: &[u16], b: &[u16], u: u16, v: u16, maxv: usize) -> Option<Vec<u16, MAX_PIECE_VERTICES>> {
     let (na, nb) = (a.len(), b.len());
     let ia = (0..na).find(|&k| a[k] == u && a[(k + 1) % na] == v)?;
     let ib = (0..nb).find(|&k| b[k] == v && b[(k + 1) % nb] == u)?;
