@@ -16,6 +16,7 @@
 //! | [`buffer`] | C-space buffers: a piece grown conservatively by `t_b` |
 //! | [`driver`] | the sonar ring driver over embedded-hal 1.0: Polaroid 6500-class modules, multiplexer, firing schedule, EERUF, faults |
 //! | [`window`] | sensor windows: parameters, pseudo-paths, placement, exact sector tests, beacon collection |
+//! | [`predict`] | range prediction: the four signature tests, Cases I–III, subsurface search, occlusion; rings of transducers |
 //! | [`map`] | the fixed-capacity obstacle map, its uniform grid index and its binary blob |
 //!
 //! Every geometric *decision* is exact integer arithmetic; there is no
@@ -45,5 +46,6 @@ pub mod credence;
 pub mod driver;
 pub mod geometry;
 pub mod map;
+pub mod predict;
 pub mod tvector;
 pub mod window;

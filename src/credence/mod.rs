@@ -42,5 +42,7 @@ impl<C: Credence + ?Sized> Credence for &C {
     }
 }
 
+pub mod crisp;
+pub mod gaussian;
 pub mod net;
 mod weights;

@@ -133,6 +133,9 @@ struct PieceRec {
     buf_start: u32,
     /// Bounding box of the buffered outline (the true one until finished).
     bbox: Rect0,
+    /// Edges shared with another piece of the same obstacle (seams left by
+    /// convex splitting): bit `i` for edge `i`. Not surfaces: no echo.
+    internal: u32,
 }
 
 #[derive(Clone, Copy, Debug, Default)]
@@ -162,6 +165,10 @@ pub struct Piece<'a> {
     pub buffered: Convex<'a>,
     /// Bounding box of `buffered`.
     pub bbox: Rect,
+    /// Seams: edges covered by an edge of another piece of the same
+    /// obstacle (bit `i` for edge `i`). They are inside the obstacle, so they
+    /// are never surfaces.
+    pub internal: u32,
 }
 
 /// Where a segment first meets the true map.
@@ -247,6 +254,7 @@ impl<const PIECES: usize, const VERTS: usize, const CELLS: usize, const REFS: us
         for p in self.pieces.iter_mut() {
             p.buf_start = p.true_start;
             p.buf_len = p.true_len;
+            p.internal = 0;
             p.bbox = Rect::of_points(&self.verts[p.true_start as usize..][..p.true_len as usize])
                 .map(Into::into)
                 .unwrap_or_default();
@@ -329,6 +337,7 @@ impl<const PIECES: usize, const VERTS: usize, const CELLS: usize, const REFS: us
             true_start: start,
             buf_start: start,
             bbox,
+            internal: 0,
         });
         self.true_verts = self.verts.len();
         if let Some(o) = self.obstacles.last_mut() {
@@ -370,7 +379,53 @@ impl<const PIECES: usize, const VERTS: usize, const CELLS: usize, const REFS: us
             rec.bbox = Rect::of_points(&grown).map(Into::into).unwrap_or_default();
         }
         let boxes = self.pieces.iter().map(|p| Rect::from(p.bbox));
-        self.grid.build(boxes, cell_mm)
+        self.grid.build(boxes, cell_mm)?;
+        self.mark_seams();
+        Ok(())
+    }
+
+    /// Marks every edge that an edge of another piece of the same obstacle
+    /// covers, running the other way: a seam from convex splitting.
+    fn mark_seams(&mut self) {
+        for i in 0..self.pieces.len() {
+            let rec = self.pieces[i];
+            let a = Convex::new_unchecked(&self.verts[rec.true_start as usize..][..rec.true_len as usize]);
+            if a.is_wall() {
+                continue;
+            }
+            let area = Rect::of_points(a.vertices()).unwrap_or(Rect::around(Point::new(0, 0)));
+            let mut mask = 0u32;
+            let pieces = &self.pieces;
+            let verts = &self.verts;
+            let _ = self.grid.query(
+                area,
+                |id| Rect::from(pieces[id as usize].bbox),
+                |id| {
+                    let other = pieces[id as usize];
+                    if id as usize == i || other.obstacle != rec.obstacle {
+                        return;
+                    }
+                    let b = Convex::new_unchecked(&verts[other.true_start as usize..][..other.true_len as usize]);
+                    for ea in 0..a.edge_count() {
+                        let (u, v) = a.edge(ea);
+                        for eb in 0..b.edge_count() {
+                            let (p, q) = b.edge(eb);
+                            let collinear =
+                                crate::geometry::orient(p, q, u) == 0 && crate::geometry::orient(p, q, v) == 0;
+                            let opposite = crate::geometry::dot(v.sub(u), q.sub(p)) < 0;
+                            if collinear
+                                && opposite
+                                && crate::geometry::point_on_segment(u, p, q)
+                                && crate::geometry::point_on_segment(v, p, q)
+                            {
+                                mask |= 1 << ea;
+                            }
+                        }
+                    }
+                },
+            );
+            self.pieces[i].internal = mask;
+        }
     }
 
     /// Whether buffers and grid are built.
@@ -427,6 +482,7 @@ impl<const PIECES: usize, const VERTS: usize, const CELLS: usize, const REFS: us
             shape: Convex::new_unchecked(&self.verts[r.true_start as usize..][..r.true_len as usize]),
             buffered: Convex::new_unchecked(&self.verts[r.buf_start as usize..][..r.buf_len as usize]),
             bbox: r.bbox.into(),
+            internal: r.internal,
         })
     }
 

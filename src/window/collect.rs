@@ -113,4 +113,3 @@ pub fn collect_beacons<const P: usize, const V: usize, const C: usize, const R: 
     }
     Ok(stats)
 }
-

@@ -50,8 +50,14 @@ pub struct WindowParams {
 impl WindowParams {
     /// MARGE's sonar (paper §4.2): `R_min` 500 mm, `R_max` 5500 mm, `θ_o`
     /// 30°, with `δ_max` 15°, `d_s_min` and `t_b` both 300 mm.
-    pub const MARGE: WindowParams =
-        WindowParams { r_min_mm: 500, r_max_mm: 5500, half_angle_deg: 30.0, delta_max_deg: 15.0, ds_min_mm: 300, tb_mm: 300 };
+    pub const MARGE: WindowParams = WindowParams {
+        r_min_mm: 500,
+        r_max_mm: 5500,
+        half_angle_deg: 30.0,
+        delta_max_deg: 15.0,
+        ds_min_mm: 300,
+        tb_mm: 300,
+    };
 
     /// Checks every field.
     pub fn validate(&self) -> Result<(), WindowError> {
@@ -140,7 +146,14 @@ mod tests {
     use super::*;
 
     fn example(ds: u32, tb: u32) -> WindowParams {
-        WindowParams { r_min_mm: 0, r_max_mm: 2400, half_angle_deg: 35.0, delta_max_deg: 15.0, ds_min_mm: ds, tb_mm: tb }
+        WindowParams {
+            r_min_mm: 0,
+            r_max_mm: 2400,
+            half_angle_deg: 35.0,
+            delta_max_deg: 15.0,
+            ds_min_mm: ds,
+            tb_mm: tb,
+        }
     }
 
     #[test]
@@ -187,6 +200,9 @@ mod tests {
         assert_eq!(WindowParams { half_angle_deg: f32::NAN, ..ok }.validate(), Err(WindowError::BadHalfAngle));
         assert_eq!(WindowParams { delta_max_deg: -1.0, ..ok }.validate(), Err(WindowError::BadDeltaMax));
         assert_eq!(WindowParams { ds_min_mm: 0, ..ok }.validate(), Err(WindowError::ZeroSurface));
-        assert!(matches!(WindowParams { ds_min_mm: 1, tb_mm: 0, ..ok }.n_pp(), Err(WindowError::TooManyPseudoPaths(_))));
+        assert!(matches!(
+            WindowParams { ds_min_mm: 1, tb_mm: 0, ..ok }.n_pp(),
+            Err(WindowError::TooManyPseudoPaths(_))
+        ));
     }
 }

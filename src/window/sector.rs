@@ -135,10 +135,7 @@ impl Sector {
     /// of the heading.
     pub fn to_map(&self, x: f32, y: f32) -> Point {
         let (c, s) = (libm::cosf(self.heading_rad), libm::sinf(self.heading_rad));
-        Point::new(
-            self.apex.x + libm::roundf(x * s + y * c) as i32,
-            self.apex.y + libm::roundf(-x * c + y * s) as i32,
-        )
+        Point::new(self.apex.x + libm::roundf(x * s + y * c) as i32, self.apex.y + libm::roundf(-x * c + y * s) as i32)
     }
 
     /// The unit vector of the axis (map frame).

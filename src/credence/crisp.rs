@@ -1,0 +1,35 @@
+//! The crisp credence model: κ = 1 inside the window's half-angle with a
+//! cone arc deviation within `δ_max`, else 0 (the paper's crisp reading of
+//! §5.2, before credence is learnt).
+
+use super::{Credence, EchoGeometry, Kappa};
+
+/// κ = 1 when `|θ| ≤ θ_o` and `δ ≤ δ_max`, else 0.
+///
+/// ```
+/// use echoloc::credence::{crisp::Crisp, Credence, EchoGeometry, Kappa};
+/// let c = Crisp { half_angle_mdeg: 15_000, delta_max_mdeg: 15_000 };
+/// let on = EchoGeometry { range_mm: 2000, theta_mdeg: -10_000, delta_mdeg: 3_000 };
+/// assert_eq!(c.kappa(&on), Kappa::ONE);
+/// assert_eq!(c.kappa(&EchoGeometry { delta_mdeg: 20_000, ..on }), Kappa::ZERO);
+/// ```
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Crisp {
+    /// `θ_o`, millidegrees.
+    pub half_angle_mdeg: i32,
+    /// `δ_max`, millidegrees.
+    pub delta_max_mdeg: i32,
+}
+
+impl Credence for Crisp {
+    fn kappa(&self, echo: &EchoGeometry) -> Kappa {
+        if echo.theta_mdeg.unsigned_abs() <= self.half_angle_mdeg.unsigned_abs()
+            && echo.delta_mdeg <= self.delta_max_mdeg
+        {
+            Kappa::ONE
+        } else {
+            Kappa::ZERO
+        }
+    }
+}

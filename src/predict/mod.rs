@@ -1,0 +1,371 @@
+//! Range prediction (paper §5, DESIGN §4.5): what a transducer should read.
+//!
+//! For each beacon in the window and each of its *front* edges (signature
+//! test 1, from the transducer's t-vector; seams between pieces of one
+//! obstacle are not surfaces), the edge is cut to the window exactly; the
+//! candidate nearest the transducer is the perpendicular foot when it lies
+//! in the window (Case I, δ = 0), else the nearest end of the cut edge
+//! (Case II when the whole edge is inside, Case III when it was clipped),
+//! which by Proposition 2 also has the smallest cone arc deviation δ
+//! (test 2). Its credence κ(R, θ, δ) comes from a [`Credence`] model; when
+//! κ < τ_κ the search moves outward along the surface in small increments
+//! (the subsurface search of §5.3) to the first credible point (test 3). A
+//! credible point whose ray from the transducer meets another piece is
+//! occluded (test 4, exact t-vector tests through the grid) and the search
+//! goes on past it. The prediction is the nearest credible, unoccluded
+//! point over every beacon: the first echo.
+//!
+//! δ is the angle between the edge normal and the ray to the echo point,
+//! computed from vectors (`atan2(|e·v|, |e×v|)`), not the printed slope
+//! formulas (10)–(12), which break by quadrant.
+//!
+//! ```
+//! use echoloc::credence::crisp::Crisp;
+//! use echoloc::geometry::Point;
+//! use echoloc::map::{Map, ObstacleKind};
+//! use echoloc::predict::{predict, PredictParams};
+//! use echoloc::window::{Window, WindowParams};
+//!
+//! let mut map: Map<16, 256, 64, 256> = Map::new();
+//! map.add_obstacle(ObstacleKind::Wall, &[&[Point::new(2000, -3000), Point::new(2000, 3000)][..]]).unwrap();
+//! map.finish(300, 1000).unwrap();
+//! let params = PredictParams::new(WindowParams { half_angle_deg: 15.0, ..WindowParams::MARGE });
+//! let crisp = Crisp { half_angle_mdeg: 15_000, delta_max_mdeg: 15_000 };
+//! let window = Window::place(&params.window, Point::new(0, 0), 0.0).unwrap();
+//! let (p, _) = predict(&map, &window, &params, &crisp).unwrap();
+//! let p = p.expect("the wall is straight ahead");
+//! assert_eq!(p.range_mm, 2000);
+//! assert_eq!(p.delta_mdeg, 0);
+//! ```
+
+mod ring;
+
+pub use ring::{place_sensor, predict_ring, Mount, Pose, PIONEER16};
+
+use heapless::Vec;
+
+use crate::credence::{Credence, EchoGeometry, Kappa};
+use crate::geometry::{Point, Segment};
+use crate::map::{Layer, Map};
+use crate::window::{collect_beacons, CollectError, CollectStats, Strategy, Window, WindowError, WindowParams};
+
+/// Most beacons one window may hold.
+pub const MAX_BEACONS: usize = 64;
+/// Most κ evaluations along one direction of one edge.
+pub const MAX_SUBSURFACE_STEPS: u32 = 128;
+
+/// Prediction settings.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct PredictParams {
+    /// The sensor window.
+    pub window: WindowParams,
+    /// How beacons are collected.
+    pub strategy: Strategy,
+    /// τ_κ: the least credence of a prediction.
+    pub tau_kappa: Kappa,
+    /// Subsurface search increment along an edge, mm.
+    pub step_mm: u32,
+    /// Tolerance on a predicted range: fixed part, mm ...
+    pub tolerance_mm: u32,
+    /// ... plus this many thousandths of the range.
+    pub tolerance_permille: u32,
+}
+
+impl PredictParams {
+    /// Defaults around `window`: exact collection, τ_κ = 0.5, 50 mm
+    /// increments, tolerance 30 mm + 1 % of the range (the Polaroid ranging
+    /// module's stated accuracy).
+    pub fn new(window: WindowParams) -> Self {
+        Self {
+            window,
+            strategy: Strategy::Exact,
+            tau_kappa: Kappa::from_bits(1 << 14),
+            step_mm: 50,
+            tolerance_mm: 30,
+            tolerance_permille: 10,
+        }
+    }
+}
+
+/// Which of the paper's cases gave the predicted point.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Case {
+    /// Case I: the perpendicular foot, δ = 0.
+    I,
+    /// Case II: the edge lies wholly in the window; the point is its nearest
+    /// credible part (its nearer vertex, unless the subsurface search moved on).
+    II,
+    /// Case III: the edge was clipped to the window first.
+    III,
+}
+
+/// A predicted reading.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Prediction {
+    /// Range to the echo point, mm.
+    pub range_mm: u32,
+    /// Its credence.
+    pub kappa: Kappa,
+    /// Angle of the echo point off the transducer axis, millidegrees (counter-clockwise positive).
+    pub theta_mdeg: i32,
+    /// Cone arc deviation at the echo point, millidegrees.
+    pub delta_mdeg: i32,
+    /// The piece echoing.
+    pub piece: u16,
+    /// Its obstacle.
+    pub obstacle: u16,
+    /// The edge (surface) of the piece.
+    pub edge: u8,
+    /// The echo point in the map, mm (rounded).
+    pub point: Point,
+    /// Expected |R_obs − R_calc| bound, mm.
+    pub tolerance_mm: u32,
+    /// Which case produced it.
+    pub case: Case,
+}
+
+/// Why prediction failed.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum PredictError {
+    /// Bad window parameters or placement.
+    Window(WindowError),
+    /// Beacon collection failed.
+    Collect(CollectError),
+}
+
+impl From<WindowError> for PredictError {
+    fn from(e: WindowError) -> Self {
+        Self::Window(e)
+    }
+}
+
+impl From<CollectError> for PredictError {
+    fn from(e: CollectError) -> Self {
+        Self::Collect(e)
+    }
+}
+
+/// Counts of one prediction's work.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct PredictStats {
+    /// The beacon collection's counts.
+    pub collect: CollectStats,
+    /// Beacons found.
+    pub beacons: u32,
+    /// Front edges that meet the window.
+    pub edges: u32,
+    /// κ evaluations.
+    pub kappa_evals: u32,
+    /// Occlusion tests (segment queries through the grid).
+    pub occlusion_tests: u32,
+}
+
+/// Predicts the reading of the transducer whose window is `window`.
+pub fn predict<const P: usize, const V: usize, const C: usize, const R: usize, K: Credence>(
+    map: &Map<P, V, C, R>,
+    window: &Window,
+    params: &PredictParams,
+    credence: &K,
+) -> Result<(Option<Prediction>, PredictStats), PredictError> {
+    let mut beacons: Vec<u16, MAX_BEACONS> = Vec::new();
+    let mut stats =
+        PredictStats { collect: collect_beacons(map, window, params.strategy, &mut beacons)?, ..Default::default() };
+    stats.beacons = beacons.len() as u32;
+    let sector = &window.sector;
+    let o = sector.apex;
+    let axis = sector.axis_unit();
+    // The best so far with its unrounded range: only a strictly nearer point replaces it.
+    let mut best: Option<(f32, Prediction)> = None;
+    for &id in &beacons {
+        let Some(piece) = map.piece(id) else { continue };
+        let shape = piece.shape;
+        let t = shape.tvector(o);
+        if t.is_inside() {
+            continue; // the transducer is inside this obstacle: nothing to see of it
+        }
+        let fronts = shape.front_surfaces(t) & !piece.internal;
+        for edge in 0..shape.edge_count() {
+            if fronts & (1 << edge) == 0 {
+                continue;
+            }
+            let (a, b) = shape.edge(edge);
+            if !sector.edge_meets(a, b) {
+                continue;
+            }
+            stats.edges += 1;
+            let Some((lo, hi)) = sector.clip_edge_f32(a, b) else { continue };
+            let ctx = EdgeCtx { o, a, b, axis, piece: id, obstacle: piece.obstacle, edge: edge as u8 };
+            search_edge(map, &ctx, lo, hi, sector.r_min_mm, sector.r_max_mm, params, credence, &mut best, &mut stats);
+        }
+    }
+    Ok((best.map(|(_, p)| p), stats))
+}
+
+struct EdgeCtx {
+    o: Point,
+    a: Point,
+    b: Point,
+    axis: (f32, f32),
+    piece: u16,
+    obstacle: u16,
+    edge: u8,
+}
+
+/// The roots of `|ao + s·e|² = r²` as `(s1, s2)`, `s1 ≤ s2`, if any.
+fn roots(ao: (f32, f32), e: (f32, f32), r: f32) -> Option<(f32, f32)> {
+    let ee = e.0 * e.0 + e.1 * e.1;
+    let b = ao.0 * e.0 + ao.1 * e.1;
+    let c = ao.0 * ao.0 + ao.1 * ao.1 - r * r;
+    let disc = b * b - ee * c;
+    if disc < 0.0 || ee == 0.0 {
+        return None;
+    }
+    let sq = libm::sqrtf(disc);
+    Some(((-b - sq) / ee, (-b + sq) / ee))
+}
+
+#[allow(clippy::too_many_arguments)]
+fn search_edge<const P: usize, const V: usize, const C: usize, const R: usize, K: Credence>(
+    map: &Map<P, V, C, R>,
+    ctx: &EdgeCtx,
+    lo: f32,
+    hi: f32,
+    r_min: u32,
+    r_max: u32,
+    params: &PredictParams,
+    credence: &K,
+    best: &mut Option<(f32, Prediction)>,
+    stats: &mut PredictStats,
+) {
+    let ao = ((ctx.a.x as i64 - ctx.o.x as i64) as f32, (ctx.a.y as i64 - ctx.o.y as i64) as f32);
+    let e = ((ctx.b.x as i64 - ctx.a.x as i64) as f32, (ctx.b.y as i64 - ctx.a.y as i64) as f32);
+    let len = libm::sqrtf(e.0 * e.0 + e.1 * e.1);
+    if len == 0.0 {
+        return;
+    }
+    let foot = -(ao.0 * e.0 + ao.1 * e.1) / (len * len);
+    // The window's ranges cut [lo, hi] into at most two intervals.
+    let Some((q1, q2)) = roots(ao, e, r_max as f32) else { return };
+    let (lo, hi) = (lo.max(q1), hi.min(q2));
+    let whole = lo <= 0.0 && hi >= 1.0;
+    let mut parts = [(lo, hi), (1.0, 0.0)];
+    if r_min > 0 {
+        if let Some((p1, p2)) = roots(ao, e, r_min as f32) {
+            parts = [(lo, hi.min(p1)), (lo.max(p2), hi)];
+        }
+    }
+    for (x, y) in parts {
+        if x > y {
+            continue;
+        }
+        let ds = (params.step_mm.max(1) as f32 / len).max((y - x) / MAX_SUBSURFACE_STEPS as f32);
+        // Walk away from the point nearest the transducer: towards y from it
+        // (itself included), then towards x when the foot lies inside.
+        let near = foot.clamp(x, y);
+        for (end, dir, include_start) in [(y, 1.0f32, true), (x, -1.0f32, false)] {
+            if !include_start && x >= near {
+                continue;
+            }
+            let mut s = near;
+            if !include_start {
+                s = (s - ds).max(end);
+            }
+            loop {
+                let v = (ao.0 + s * e.0, ao.1 + s * e.1);
+                let range = libm::sqrtf(v.0 * v.0 + v.1 * v.1);
+                if best.is_some_and(|(r, _)| range >= r) {
+                    break; // farther along only gets farther
+                }
+                let theta = libm::atan2f(ctx.axis.0 * v.1 - ctx.axis.1 * v.0, ctx.axis.0 * v.0 + ctx.axis.1 * v.1);
+                let delta = libm::atan2f((e.0 * v.0 + e.1 * v.1).abs(), (e.0 * v.1 - e.1 * v.0).abs());
+                let echo = EchoGeometry {
+                    range_mm: libm::roundf(range) as u32,
+                    theta_mdeg: libm::roundf(theta.to_degrees() * 1000.0) as i32,
+                    delta_mdeg: libm::roundf(delta.to_degrees() * 1000.0) as i32,
+                };
+                stats.kappa_evals += 1;
+                let kappa = credence.kappa(&echo);
+                if kappa >= params.tau_kappa && !occluded(map, ctx, v, range, stats) {
+                    let case = if (s - foot).abs() * len < 0.5 {
+                        Case::I
+                    } else if whole {
+                        Case::II
+                    } else {
+                        Case::III
+                    };
+                    let point = Point::new(ctx.o.x + libm::roundf(v.0) as i32, ctx.o.y + libm::roundf(v.1) as i32);
+                    let tol = params.tolerance_mm + echo.range_mm * params.tolerance_permille / 1000;
+                    *best = Some((
+                        range,
+                        Prediction {
+                            range_mm: echo.range_mm,
+                            kappa,
+                            theta_mdeg: echo.theta_mdeg,
+                            delta_mdeg: if case == Case::I { 0 } else { echo.delta_mdeg },
+                            piece: ctx.piece,
+                            obstacle: ctx.obstacle,
+                            edge: ctx.edge,
+                            point,
+                            tolerance_mm: tol,
+                            case,
+                        },
+                    ));
+                    break;
+                }
+                if (end - s) * dir <= 0.0 {
+                    break;
+                }
+                s += ds * dir;
+                if (end - s) * dir < 0.0 {
+                    s = end;
+                }
+            }
+        }
+    }
+}
+
+/// Test 4: does the ray from the transducer to the point `v` (relative to
+/// it) meet any other piece? The ray stops a millimetre short of the point,
+/// so a neighbour that only touches the echo point does not hide it.
+fn occluded<const P: usize, const V: usize, const C: usize, const R: usize>(
+    map: &Map<P, V, C, R>,
+    ctx: &EdgeCtx,
+    v: (f32, f32),
+    range: f32,
+    stats: &mut PredictStats,
+) -> bool {
+    stats.occlusion_tests += 1;
+    let k = ((range - 1.0) / range).max(0.0);
+    let end = Point::new(ctx.o.x + libm::roundf(v.0 * k) as i32, ctx.o.y + libm::roundf(v.1 * k) as i32);
+    let mut hidden = false;
+    let _ = map.for_each_hit(Segment::new(ctx.o, end), Layer::True, |p| {
+        if p.id != ctx.piece {
+            hidden = true;
+        }
+    });
+    hidden
+}
+
+/// `predict --geometric`: the distance to the nearest obstacle point in the
+/// wedge `|φ| ≤ θ_o` within `R_max` (no δ, κ or `R_min`), with the point and
+/// piece; `None` if there is none.
+pub fn nearest_in_window<const P: usize, const V: usize, const C: usize, const R: usize>(
+    map: &Map<P, V, C, R>,
+    window: &Window,
+) -> Result<Option<(f64, (f64, f64), u16)>, PredictError> {
+    let mut best: Option<(f64, (f64, f64), u16)> = None;
+    map.for_each_candidate(window.sector.bbox(), |p| {
+        if let Some((d, q)) = window.sector.nearest(p.shape) {
+            if best.is_none_or(|(bd, _, _)| d < bd) {
+                best = Some((d, q, p.id));
+            }
+        }
+    })
+    .map_err(|e| PredictError::Collect(CollectError::Map(e)))?;
+    Ok(best)
+}
