@@ -4,10 +4,9 @@
 //! numerators reach about 2¹⁵⁶. A 256-bit unsigned value (two `u128` limbs)
 //! with multiply, add and compare is all they need.
 
-use core::cmp::Ordering;
-
 /// An unsigned 256-bit integer: `hi · 2¹²⁸ + lo`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+/// Ordered by `hi`, then `lo`: the numeric order.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
 pub struct U256 {
     hi: u128,
     lo: u128,
@@ -44,11 +43,6 @@ impl U256 {
         let (lo, c) = self.lo.overflowing_add(o.lo);
         let hi = self.hi.saturating_add(o.hi).saturating_add(c as u128);
         U256 { hi, lo }
-    }
-
-    /// Compares two values.
-    pub fn cmp(&self, o: &U256) -> Ordering {
-        self.hi.cmp(&o.hi).then(self.lo.cmp(&o.lo))
     }
 }
 

@@ -351,18 +351,28 @@ fn occluded<const P: usize, const V: usize, const C: usize, const R: usize>(
     hidden
 }
 
-/// `predict --geometric`: the distance to the nearest obstacle point in the
-/// wedge `|φ| ≤ θ_o` within `R_max` (no δ, κ or `R_min`), with the point and
-/// piece; `None` if there is none.
+/// The nearest obstacle point in a window, geometrically.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Nearest {
+    /// Its distance from the transducer, mm.
+    pub range_mm: f64,
+    /// The point in the map, mm.
+    pub point: (f64, f64),
+    /// The piece it lies on.
+    pub piece: u16,
+}
+
+/// `predict --geometric`: the nearest obstacle point in the wedge
+/// `|φ| ≤ θ_o` within `R_max` (no δ, κ or `R_min`); `None` if there is none.
 pub fn nearest_in_window<const P: usize, const V: usize, const C: usize, const R: usize>(
     map: &Map<P, V, C, R>,
     window: &Window,
-) -> Result<Option<(f64, (f64, f64), u16)>, PredictError> {
-    let mut best: Option<(f64, (f64, f64), u16)> = None;
+) -> Result<Option<Nearest>, PredictError> {
+    let mut best: Option<Nearest> = None;
     map.for_each_candidate(window.sector.bbox(), |p| {
         if let Some((d, q)) = window.sector.nearest(p.shape) {
-            if best.is_none_or(|(bd, _, _)| d < bd) {
-                best = Some((d, q, p.id));
+            if best.is_none_or(|b| d < b.range_mm) {
+                best = Some(Nearest { range_mm: d, point: q, piece: p.id });
             }
         }
     })
