@@ -110,7 +110,7 @@ mod tests {
         for n in [0u64, 1, 2, 3, 4, 15, 16, 17, 99, 100, u32::MAX as u64, u64::MAX] {
             let r = isqrt(n);
             assert!(r * r <= n);
-            assert!((r + 1).checked_mul(r + 1).map_or(true, |s| s > n), "n={n} r={r}");
+            assert!((r + 1).checked_mul(r + 1).is_none_or(|s| s > n), "n={n} r={r}");
         }
     }
 

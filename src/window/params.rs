@@ -69,7 +69,7 @@ impl WindowParams {
             return Err(WindowError::BadHalfAngle);
         }
         let d = self.delta_max_deg;
-        if !(d >= 0.0 && d < 90.0) {
+        if !(0.0..90.0).contains(&d) {
             return Err(WindowError::BadDeltaMax);
         }
         if self.ds_min_mm == 0 {
