@@ -4,6 +4,7 @@
 
 mod credence;
 mod map;
+mod predict;
 
 use std::process::ExitCode;
 
@@ -21,6 +22,10 @@ enum Cmd {
     /// Polygon maps: import to the firmware's blob, inspect.
     #[command(subcommand)]
     Map(map::MapCmd),
+    /// The pseudo-path layout of a sensor window, eq. (1)-(6).
+    Window(predict::WindowArgs),
+    /// Predicted readings: one JSON object per transducer per line.
+    Predict(predict::PredictArgs),
     /// Credence data: run the physical sonar model as the paper's experiment, one CSV per day.
     Synth(credence::SynthArgs),
     /// Credence net: leave-one-day-out evaluation against the Gaussian baseline, training, quantisation, figures.
@@ -31,6 +36,8 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.cmd {
         Cmd::Map(c) => map::run(c),
+        Cmd::Window(a) => predict::window_cmd(&a),
+        Cmd::Predict(a) => predict::predict_cmd(&a),
         Cmd::Synth(a) => credence::synth_cmd(&a).map_err(|e| map::LabError(e.to_string())),
         Cmd::Train(a) => credence::train_cmd(&a).map_err(|e| map::LabError(e.to_string())),
     };

@@ -7,7 +7,7 @@
 //! in the window (Case I, δ = 0), else the nearest end of the cut edge
 //! (Case II when the whole edge is inside, Case III when it was clipped),
 //! which by Proposition 2 also has the smallest cone arc deviation δ
-//! (test 2). Its credence κ(R, θ, δ) comes from a [`Credence`] model; when
+//! (test 2: δ ≤ δ_max, whatever the credence model). Its credence κ(R, θ, δ) comes from a [`Credence`] model; when
 //! κ < τ_κ the search moves outward along the surface in small increments
 //! (the subsurface search of §5.3) to the first credible point (test 3). A
 //! credible point whose ray from the transducer meets another piece is
@@ -166,7 +166,7 @@ pub struct PredictStats {
 }
 
 /// Predicts the reading of the transducer whose window is `window`.
-pub fn predict<const P: usize, const V: usize, const C: usize, const R: usize, K: Credence>(
+pub fn predict<const P: usize, const V: usize, const C: usize, const R: usize, K: Credence + ?Sized>(
     map: &Map<P, V, C, R>,
     window: &Window,
     params: &PredictParams,
@@ -230,7 +230,7 @@ fn roots(ao: (f32, f32), e: (f32, f32), r: f32) -> Option<(f32, f32)> {
 }
 
 #[allow(clippy::too_many_arguments)]
-fn search_edge<const P: usize, const V: usize, const C: usize, const R: usize, K: Credence>(
+fn search_edge<const P: usize, const V: usize, const C: usize, const R: usize, K: Credence + ?Sized>(
     map: &Map<P, V, C, R>,
     ctx: &EdgeCtx,
     lo: f32,
@@ -249,6 +249,7 @@ fn search_edge<const P: usize, const V: usize, const C: usize, const R: usize, K
         return;
     }
     let foot = -(ao.0 * e.0 + ao.1 * e.1) / (len * len);
+    let delta_max_mdeg = libm::roundf(params.window.delta_max_deg * 1000.0) as i32;
     // The window's ranges cut [lo, hi] into at most two intervals.
     let Some((q1, q2)) = roots(ao, e, r_max as f32) else { return };
     let (lo, hi) = (lo.max(q1), hi.min(q2));
@@ -288,6 +289,11 @@ fn search_edge<const P: usize, const V: usize, const C: usize, const R: usize, K
                     theta_mdeg: libm::roundf(theta.to_degrees() * 1000.0) as i32,
                     delta_mdeg: libm::roundf(delta.to_degrees() * 1000.0) as i32,
                 };
+                // Test 2: δ grows with distance from the foot (Proposition 2),
+                // so past δ_max nothing farther along this way can echo.
+                if echo.delta_mdeg > delta_max_mdeg {
+                    break;
+                }
                 stats.kappa_evals += 1;
                 let kappa = credence.kappa(&echo);
                 if kappa >= params.tau_kappa && !occluded(map, ctx, v, range, stats) {

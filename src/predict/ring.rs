@@ -70,7 +70,7 @@ pub fn place_sensor(pose: &Pose, mount: &Mount) -> (Point, f32) {
 /// Predicts every transducer of a ring for one pose into `out` (one slot per
 /// mount; `out` must be at least as long as `mounts`). Returns the summed
 /// work counts.
-pub fn predict_ring<const P: usize, const V: usize, const C: usize, const R: usize, K: Credence>(
+pub fn predict_ring<const P: usize, const V: usize, const C: usize, const R: usize, K: Credence + ?Sized>(
     map: &Map<P, V, C, R>,
     pose: &Pose,
     mounts: &[Mount],

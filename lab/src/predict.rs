@@ -1,0 +1,258 @@
+//! `echoloc-lab window` and `echoloc-lab predict` (DESIGN §7).
+
+use std::path::{Path, PathBuf};
+
+use clap::{Args, ValueEnum};
+use echoloc::credence::crisp::Crisp;
+use echoloc::credence::gaussian::GaussianLobe;
+use echoloc::credence::net::CredenceNet;
+use echoloc::credence::Credence;
+use echoloc::geometry::Point;
+use echoloc::map::StandardMap;
+use echoloc::predict::{nearest_in_window, place_sensor, predict, Mount, Pose, PredictParams, PIONEER16};
+use echoloc::window::{Strategy, Window, WindowParams};
+use serde_json::{json, Value};
+
+use crate::map::{self, LabError};
+
+/// `window`: the pseudo-path layout of eq. (1)–(6).
+#[derive(Args)]
+pub struct WindowArgs {
+    /// R_max, mm.
+    #[arg(long = "rmax-mm")]
+    rmax_mm: u32,
+    /// Half-angle θ_o, degrees.
+    #[arg(long = "half-angle-deg")]
+    half_angle_deg: f32,
+    /// Smallest detectable surface d_s_min, mm.
+    #[arg(long = "ds-min-mm")]
+    ds_min_mm: u32,
+    /// Largest cone arc deviation δ_max, degrees.
+    #[arg(long = "delta-max-deg")]
+    delta_max_deg: f32,
+    /// C-space buffer t_b, mm (0: unbuffered).
+    #[arg(long = "tb-mm", default_value_t = 0)]
+    tb_mm: u32,
+}
+
+pub fn window_cmd(a: &WindowArgs) -> Result<String, LabError> {
+    let p = WindowParams {
+        r_min_mm: 0,
+        r_max_mm: a.rmax_mm,
+        half_angle_deg: a.half_angle_deg,
+        delta_max_deg: a.delta_max_deg,
+        ds_min_mm: a.ds_min_mm,
+        tb_mm: a.tb_mm,
+    };
+    let err = |e| LabError(format!("window parameters: {e:?}"));
+    let n = p.n_pp().map_err(err)?;
+    let ends: Vec<Value> = (0..n)
+        .map(|k| p.endpoint(k).map(|(x, y)| json!([round3(x as f64), round3(y as f64)])))
+        .collect::<Result<_, _>>()
+        .map_err(err)?;
+    Ok(json!({
+        "n_pp": n,
+        "w_mm": round3(p.w_mm().map_err(err)? as f64),
+        "w_min_mm": round3(p.w_min_mm() as f64),
+        "endpoints_mm": ends,
+        "pseudo_paths_complete": p.pseudo_paths_complete(),
+    })
+    .to_string())
+}
+
+fn round3(v: f64) -> f64 {
+    (v * 1000.0).round() / 1000.0
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+pub enum Model {
+    /// The quantised 2-10-1 credence net shipped in the firmware.
+    Net,
+    /// κ = 1 inside θ_o with δ ≤ δ_max, else 0.
+    Crisp,
+    /// Single-lobe Gaussian, σ = 14.8° (the baseline's width at 3 m).
+    Gaussian,
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+pub enum Collect {
+    /// Exact true-outline ∩ sector.
+    Exact,
+    /// The paper's pseudo-paths against buffered outlines.
+    PseudoPaths,
+}
+
+/// `predict`: what each transducer should read.
+#[derive(Args)]
+pub struct PredictArgs {
+    /// The map: a blob (.map), a GeoJSON (.geojson) or a ROS map_server .yaml.
+    #[arg(long)]
+    map: PathBuf,
+    /// One transducer at X,Y (m), heading DEG in the map frame.
+    #[arg(long, value_name = "X,Y,DEG", conflicts_with_all = ["pose", "ring"], required_unless_present = "pose", allow_hyphen_values = true)]
+    sensor: Option<String>,
+    /// The robot at X,Y (m), heading DEG; every transducer of --ring.
+    #[arg(long, value_name = "X,Y,DEG", allow_hyphen_values = true)]
+    pose: Option<String>,
+    /// The ring: `pioneer16` or a JSON file of [[x_m, y_m, heading_deg], …].
+    #[arg(long, default_value = "pioneer16", requires = "pose")]
+    ring: String,
+    /// R_min, mm.
+    #[arg(long = "rmin-mm", default_value_t = 500)]
+    rmin_mm: u32,
+    /// R_max, mm.
+    #[arg(long = "rmax-mm", default_value_t = 5500)]
+    rmax_mm: u32,
+    /// Half-angle θ_o, degrees.
+    #[arg(long = "half-angle-deg", default_value_t = 30.0)]
+    half_angle_deg: f32,
+    /// δ_max, degrees.
+    #[arg(long = "delta-max-deg", default_value_t = 15.0)]
+    delta_max_deg: f32,
+    /// d_s_min for the pseudo-path layout, mm.
+    #[arg(long = "ds-min-mm", default_value_t = 300)]
+    ds_min_mm: u32,
+    /// C-space buffer when MAP is imported here (a .map blob carries its own), mm.
+    #[arg(long = "buffer-mm", default_value_t = 100)]
+    buffer_mm: u32,
+    /// Credence model.
+    #[arg(long, value_enum, default_value = "net")]
+    credence: Model,
+    /// τ_κ, the least credence of a prediction.
+    #[arg(long, default_value_t = 0.5)]
+    tau: f32,
+    /// Beacon collection strategy.
+    #[arg(long, value_enum, default_value = "exact")]
+    collect: Collect,
+    /// Nearest obstacle point in |φ| ≤ θ_o, r ≤ R_max: no δ, κ or R_min.
+    #[arg(long)]
+    geometric: bool,
+}
+
+fn triple(s: &str, what: &str) -> Result<(f64, f64, f64), LabError> {
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|t| t.trim().parse::<f64>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| LabError(format!("--{what} {s:?}: expected X,Y,DEG (numbers)")))?;
+    match v[..] {
+        [x, y, d] if v.iter().all(|t| t.is_finite()) => Ok((x, y, d)),
+        _ => Err(LabError(format!("--{what} {s:?}: expected three finite numbers X,Y,DEG"))),
+    }
+}
+
+/// Loads MAP in any of its three forms into the firmware's map.
+pub fn load_map(path: &Path, buffer_mm: u32) -> Result<Box<StandardMap>, LabError> {
+    let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
+    let blob = if ext == "map" {
+        std::fs::read(path).map_err(|e| LabError(format!("{}: {e}", path.display())))?
+    } else {
+        let shapes = map::read_shapes(path)?;
+        map::build_map(&shapes, buffer_mm, 1000).map_err(|e| LabError(format!("{}: {e}", path.display())))?.0
+    };
+    let mut m: Box<StandardMap> = Box::default();
+    m.load(&blob).map_err(|e| LabError(format!("{}: not a valid map blob: {e:?}", path.display())))?;
+    Ok(m)
+}
+
+fn ring_mounts(spec: &str) -> Result<Vec<Mount>, LabError> {
+    if spec == "pioneer16" {
+        return Ok(PIONEER16.to_vec());
+    }
+    let text = std::fs::read_to_string(spec).map_err(|e| LabError(format!("--ring {spec}: {e}")))?;
+    let v: Vec<[f64; 3]> = serde_json::from_str(&text)
+        .map_err(|e| LabError(format!("--ring {spec}: expected a JSON array of [x_m, y_m, heading_deg]: {e}")))?;
+    if v.is_empty() {
+        return Err(LabError(format!("--ring {spec}: no transducers")));
+    }
+    v.iter()
+        .enumerate()
+        .map(|(i, [x, y, d])| {
+            if !(x.is_finite() && y.is_finite() && d.is_finite()) || x.abs() > 100.0 || y.abs() > 100.0 {
+                return Err(LabError(format!("--ring {spec}: transducer {i}: position beyond ±100 m or not finite")));
+            }
+            Ok(Mount {
+                x_mm: (x * 1000.0).round() as i32,
+                y_mm: (y * 1000.0).round() as i32,
+                heading_mdeg: (d * 1000.0).round() as i32,
+            })
+        })
+        .collect()
+}
+
+pub fn predict_cmd(a: &PredictArgs) -> Result<String, LabError> {
+    let window = WindowParams {
+        r_min_mm: a.rmin_mm,
+        r_max_mm: a.rmax_mm,
+        half_angle_deg: a.half_angle_deg,
+        delta_max_deg: a.delta_max_deg,
+        ds_min_mm: a.ds_min_mm,
+        tb_mm: 0,
+    };
+    let map = load_map(&a.map, a.buffer_mm)?;
+    // Pseudo-paths search the buffered outlines the map was finished with.
+    let window = WindowParams { tb_mm: map.buffer_mm(), ..window };
+    window.validate().map_err(|e| LabError(format!("window parameters: {e:?}")))?;
+    if !(0.0..=1.0).contains(&a.tau) {
+        return Err(LabError(format!("--tau {}: must be within 0..=1", a.tau)));
+    }
+    let mut params = PredictParams::new(window);
+    params.tau_kappa = echoloc::credence::Kappa::saturating_from_num(a.tau);
+    params.strategy = match a.collect {
+        Collect::Exact => Strategy::Exact,
+        Collect::PseudoPaths => Strategy::PseudoPaths,
+    };
+    // (apex, heading) per transducer.
+    let sensors: Vec<(Point, f32)> = if let Some(s) = &a.sensor {
+        let (x, y, d) = triple(s, "sensor")?;
+        vec![(Point::new((x * 1000.0).round() as i32, (y * 1000.0).round() as i32), (d as f32).to_radians())]
+    } else {
+        let (x, y, d) = triple(a.pose.as_deref().unwrap_or_default(), "pose")?;
+        let pose = Pose { x_mm: (x * 1000.0) as f32, y_mm: (y * 1000.0) as f32, heading_rad: (d as f32).to_radians() };
+        ring_mounts(&a.ring)?.iter().map(|m| place_sensor(&pose, m)).collect()
+    };
+    let delta_mdeg = (a.delta_max_deg * 1000.0).round() as i32;
+    let half_mdeg = (a.half_angle_deg * 1000.0).round() as i32;
+    let model: Box<dyn Credence> = match a.credence {
+        Model::Net => Box::new(CredenceNet::shipped()),
+        Model::Crisp => Box::new(Crisp { half_angle_mdeg: half_mdeg, delta_max_mdeg: delta_mdeg }),
+        Model::Gaussian => Box::new(GaussianLobe { peak: 1.0, sigma_deg: 14.8, delta_max_mdeg: delta_mdeg }),
+    };
+    let mut lines = Vec::new();
+    for (i, &(apex, heading)) in sensors.iter().enumerate() {
+        let w = Window::place(&params.window, apex, heading)
+            .map_err(|e| LabError(format!("sensor {i} at {apex:?}: {e:?}")))?;
+        let line = if a.geometric {
+            let n = nearest_in_window(&*map, &w).map_err(|e| LabError(format!("sensor {i}: {e:?}")))?;
+            match n {
+                Some(n) => {
+                    let (dx, dy) = (n.point.0 - apex.x as f64, n.point.1 - apex.y as f64);
+                    let theta = dy.atan2(dx) - heading as f64;
+                    json!({"sensor": i, "range_m": n.range_mm / 1000.0, "kappa": null,
+                           "theta_deg": wrap_deg(theta.to_degrees()), "delta_deg": null,
+                           "point": [n.point.0 / 1000.0, n.point.1 / 1000.0]})
+                }
+                None => {
+                    json!({"sensor": i, "range_m": null, "kappa": null, "theta_deg": null, "delta_deg": null, "point": null})
+                }
+            }
+        } else {
+            let (p, _) = predict(&*map, &w, &params, &*model).map_err(|e| LabError(format!("sensor {i}: {e:?}")))?;
+            match p {
+                Some(p) => json!({"sensor": i, "range_m": p.range_mm as f64 / 1000.0, "kappa": p.kappa.to_num::<f64>(),
+                                  "theta_deg": p.theta_mdeg as f64 / 1000.0, "delta_deg": p.delta_mdeg as f64 / 1000.0,
+                                  "point": [p.point.x as f64 / 1000.0, p.point.y as f64 / 1000.0]}),
+                None => {
+                    json!({"sensor": i, "range_m": null, "kappa": 0.0, "theta_deg": null, "delta_deg": null, "point": null})
+                }
+            }
+        };
+        lines.push(line.to_string());
+    }
+    Ok(lines.join("\n"))
+}
+
+fn wrap_deg(d: f64) -> f64 {
+    let w = (d + 180.0).rem_euclid(360.0) - 180.0;
+    (w * 1000.0).round() / 1000.0
+}
