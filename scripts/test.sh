@@ -41,6 +41,7 @@ out=$(cargo run -q -p qemu-mps2-an386 --target thumbv7em-none-eabihf --release 2
 echo "$out"
 grep -q "corrupted blob: refused" <<<"$out"
 grep -q "stack high-water mark" <<<"$out"
+grep -q "ring16 PseudoPaths" <<<"$out"
 
 step "docs"
 RUSTDOCFLAGS="-D warnings" cargo doc -q --no-deps --workspace

@@ -13,8 +13,11 @@
 use cortex_m::peripheral::{syst::SystClkSource, SYST};
 use cortex_m_rt::{entry, exception, ExceptionFrame};
 use cortex_m_semihosting::{debug, hprintln};
+use echoloc::credence::net::CredenceNet;
 use echoloc::geometry::{Point, Segment};
 use echoloc::map::{BlobError, Layer, StandardMap};
+use echoloc::predict::{predict_ring, Pose, PredictParams, PIONEER16};
+use echoloc::window::{Strategy, WindowParams};
 use static_cell::ConstStaticCell;
 
 /// The map lives in a static, initialised at compile time: no stack copy.
@@ -118,6 +121,48 @@ fn main() -> ! {
                 elapsed(t0, t1)
             ),
         }
+    }
+
+    // A full Pioneer ring prediction with the quantised credence net, by
+    // both beacon-collection strategies: they must agree.
+    let pose = Pose { x_mm: 4000.0, y_mm: 4000.0, heading_rad: 0.0 };
+    let net = CredenceNet::shipped();
+    let window = WindowParams { tb_mm: map.buffer_mm(), ..WindowParams::MARGE };
+    let mut rings = [[None; 16]; 2];
+    for (k, strategy) in [Strategy::Exact, Strategy::PseudoPaths].into_iter().enumerate() {
+        let params = PredictParams { strategy, ..PredictParams::new(window) };
+        let t0 = ticks(&syst);
+        let stats = predict_ring(&*map, &pose, &PIONEER16, &params, &net, &mut rings[k]);
+        let t = elapsed(t0, ticks(&syst));
+        match stats {
+            Ok(st) => hprintln!(
+                "ring16 {:?} at (4.0, 4.0) m, 0 deg: {} ticks; {} candidates, {} beacons, {} edges, {} kappa, {} occlusion tests",
+                strategy, t, st.collect.candidates, st.beacons, st.edges, st.kappa_evals, st.occlusion_tests
+            ),
+            Err(e) => {
+                hprintln!("FAIL: ring prediction: {:?}", e);
+                ok = false;
+            }
+        }
+    }
+    for (i, p) in rings[0].iter().enumerate() {
+        match p {
+            Some(p) => hprintln!(
+                "  sonar {}: {} mm, kappa {}, theta {} mdeg, delta {} mdeg, obstacle {}, case {:?}",
+                i,
+                p.range_mm,
+                p.kappa.to_bits(),
+                p.theta_mdeg,
+                p.delta_mdeg,
+                p.obstacle,
+                p.case
+            ),
+            None => hprintln!("  sonar {}: nothing credible in range", i),
+        }
+    }
+    if rings[0] != rings[1] {
+        hprintln!("FAIL: the two strategies predicted differently");
+        ok = false;
     }
 
     let (used, size) = stack_high_water();
