@@ -63,8 +63,18 @@ fn bad_inputs_fail_clearly_and_write_nothing() {
     import_fails("point.geojson", r#"{"type":"Point","coordinates":[1,2]}"#, "unsupported geometry type \"Point\"");
     import_fails(
         "hole.geojson",
-        r#"{"type":"Polygon","coordinates":[[[0,0],[4,0],[4,4],[0,4],[0,0]],[[1,1],[2,1],[2,2],[1,1]]]}"#,
-        "hole",
+        r#"{"type":"Polygon","coordinates":[[[0,0],[4,0],[4,4],[0,4],[0,0]],[[5,1],[6,1],[6,2],[5,1]]]}"#,
+        "HoleOutside: hole 0",
+    );
+    import_fails(
+        "touch.geojson",
+        r#"{"type":"Polygon","coordinates":[[[0,0],[4,0],[4,4],[0,4],[0,0]],[[0,1],[2,1],[2,2],[0,1]]]}"#,
+        "RingsMeet",
+    );
+    import_fails(
+        "shorthole.geojson",
+        r#"{"type":"Polygon","coordinates":[[[0,0],[4,0],[4,4],[0,4],[0,0]],[[1,1],[2,1],[1,1]]]}"#,
+        "coordinates[1]: hole 0 needs at least three distinct vertices",
     );
     import_fails(
         "far.geojson",

@@ -127,13 +127,8 @@ pub fn split_convex_with_holes<const N: usize, E>(
         let _ = starts.push(from as u16);
         let _ = pts.extend_from_slice(ring);
         clean_ring(&mut pts, from);
-        let area2 = ring_area2(&pts[from..]);
-        if pts.len() - from < 3 || area2 == 0 {
+        if pts.len() - from < 3 {
             return Err(HolesError::Degenerate(which));
-        }
-        // Outer counter-clockwise, holes clockwise.
-        if (r == 0) != (area2 > 0) {
-            pts[from..].reverse();
         }
     }
     let _ = starts.push(pts.len() as u16);
@@ -173,6 +168,19 @@ pub fn split_convex_with_holes<const N: usize, E>(
             }
         }
     }
+    // Orientation: outer counter-clockwise, holes clockwise. (A simple ring
+    // has area; a crossed one was refused above.)
+    for r in 0..rings {
+        let (from, to) = (starts[r] as usize, starts[r + 1] as usize);
+        let area2 = ring_area2(&pts[from..to]);
+        if area2 == 0 {
+            return Err(HolesError::Degenerate(ring_id(r)));
+        }
+        if (r == 0) != (area2 > 0) {
+            pts[from..to].reverse();
+        }
+    }
+    let ring_of = |r: usize| &pts[starts[r] as usize..starts[r + 1] as usize];
     // 3. Nesting: with no edges meeting, one vertex decides a whole ring.
     for h in 1..rings {
         if !strictly_inside(ring_of(0), ring_of(h)[0]) {

@@ -1,20 +1,28 @@
 //! Shapes (simple polygons and polylines, mm) → convex pieces → the
 //! firmware's map → blob.
 
-use echoloc::geometry::{split_convex, Point, SplitError, MAX_PIECE_VERTICES};
+use echoloc::geometry::{split_convex_with_holes, HolesError, Point, Ring, MAX_PIECE_VERTICES};
 use echoloc::map::{Capacity, Map, MapError, ObstacleKind, StandardMap};
 
 /// One obstacle as imported.
 #[derive(Clone, Debug, PartialEq)]
 pub enum Shape {
-    /// A simple polygon (either orientation).
-    Solid(Vec<Point>),
+    /// A simple polygon (either orientation) with simple holes strictly
+    /// inside it, touching neither it nor one another.
+    Solid {
+        /// The outer boundary.
+        outer: Vec<Point>,
+        /// The holes.
+        holes: Vec<Vec<Point>>,
+    },
     /// A polyline wall.
     Wall(Vec<Point>),
 }
 
-/// Most vertices one polygon may have before splitting.
-const SPLIT_CAPACITY: usize = 8192;
+/// Most vertices one polygon (outer ring, holes and two bridge vertices per
+/// hole) may have before splitting. The splitter's working set is about 110
+/// bytes a vertex on the stack: [`super::run`] gives the import a large one.
+pub const SPLIT_CAPACITY: usize = 32768;
 
 /// The import's figures, printed as JSON.
 #[derive(Clone, Debug)]
@@ -27,6 +35,8 @@ pub struct MapSummary {
     pub cell_mm: u32,
     pub grid: (u16, u16),
     pub grid_refs: usize,
+    /// Source-specific figures (the import's options, cell counts, …).
+    pub extra: serde_json::Map<String, serde_json::Value>,
 }
 
 impl MapSummary {
@@ -45,11 +55,12 @@ impl MapSummary {
             cell_mm,
             grid: (cols, rows),
             grid_refs: m.grid_refs(),
+            extra: serde_json::Map::new(),
         }
     }
 
     pub fn to_json(&self) -> String {
-        serde_json::json!({
+        let mut v = serde_json::json!({
             "polygons": self.polygons,
             "convex_pieces": self.convex_pieces,
             "edges": self.edges,
@@ -58,8 +69,11 @@ impl MapSummary {
             "cell_mm": self.cell_mm,
             "grid": [self.grid.0, self.grid.1],
             "grid_refs": self.grid_refs,
-        })
-        .to_string()
+        });
+        if let Some(o) = v.as_object_mut() {
+            o.extend(self.extra.clone());
+        }
+        v.to_string()
     }
 }
 
@@ -70,14 +84,16 @@ pub fn build_map(shapes: &[Shape], buffer_mm: u32, cell_mm: u32) -> Result<(Vec<
     let mut map: Box<StandardMap> = Box::default();
     for (i, shape) in shapes.iter().enumerate() {
         match shape {
-            Shape::Solid(ring) => {
+            Shape::Solid { outer, holes } => {
                 let mut first = true;
-                split_convex::<SPLIT_CAPACITY, MapError>(ring, MAX_PIECE_VERTICES, |piece| {
+                let hs: Vec<&[Point]> = holes.iter().map(Vec::as_slice).collect();
+                split_convex_with_holes::<SPLIT_CAPACITY, MapError>(outer, &hs, MAX_PIECE_VERTICES, |piece| {
                     map.push_piece(ObstacleKind::Solid, std::mem::take(&mut first), piece).map(|_| ())
                 })
                 .map_err(|e| match e {
-                    SplitError::Sink(e) => format!("shape {i}: {}", map_error(e)),
-                    e => format!("shape {i}: cannot split into convex pieces: {e:?}"),
+                    HolesError::Sink(MapError::Full(c)) => capacity_error(shapes, c),
+                    HolesError::Sink(e) => format!("shape {i}: {}", map_error(e)),
+                    e => format!("shape {i}: cannot split into convex pieces: {}", holes_error(e)),
                 })?;
             }
             Shape::Wall(line) => {
@@ -85,8 +101,10 @@ pub fn build_map(shapes: &[Shape], buffer_mm: u32, cell_mm: u32) -> Result<(Vec<
                     if seg[0] == seg[1] {
                         continue; // a repeated position is no segment
                     }
-                    map.push_piece(ObstacleKind::Wall, k == 0, seg)
-                        .map_err(|e| format!("shape {i}, segment {k}: {}", map_error(e)))?;
+                    map.push_piece(ObstacleKind::Wall, k == 0, seg).map_err(|e| match e {
+                        MapError::Full(c) => capacity_error(shapes, c),
+                        e => format!("shape {i}, segment {k}: {}", map_error(e)),
+                    })?;
                 }
             }
         }
@@ -96,6 +114,7 @@ pub fn build_map(shapes: &[Shape], buffer_mm: u32, cell_mm: u32) -> Result<(Vec<
         match map.finish(buffer_mm, cell) {
             Ok(()) => break,
             Err(MapError::Full(Capacity::Cells | Capacity::CellRefs)) if cell < u32::MAX / 2 => cell *= 2,
+            Err(MapError::Full(c)) => return Err(capacity_error(shapes, c)),
             Err(e) => return Err(map_error(e)),
         }
     }
@@ -111,4 +130,63 @@ fn map_error(e: MapError) -> String {
         MapError::Full(c) => format!("the map exceeds the firmware's capacity ({c:?}) of echoloc::map::StandardMap"),
         e => format!("{e:?}"),
     }
+}
+
+/// Words for a splitting error (the Debug name stays in, for searching).
+pub fn holes_error(e: HolesError<MapError>) -> String {
+    let ring = |r: Ring| match r {
+        Ring::Outer => "the outer ring".to_string(),
+        Ring::Hole(h) => format!("hole {h}"),
+    };
+    match e {
+        HolesError::TooManyVertices => {
+            format!("TooManyVertices: more than {SPLIT_CAPACITY} vertices in one polygon (holes count two extra each)")
+        }
+        HolesError::CoordinateOutOfRange(r) => {
+            format!("CoordinateOutOfRange: {} has a coordinate beyond ±COORD_MAX", ring(r))
+        }
+        HolesError::Degenerate(r) => format!("Degenerate: {} has no area", ring(r)),
+        HolesError::Intersect { ring_a, edge_a, ring_b, edge_b } if ring_a == ring_b => {
+            format!("NotSimple: edges {edge_a} and {edge_b} of {} meet", ring(ring_a))
+        }
+        HolesError::Intersect { ring_a, edge_a, ring_b, edge_b } => {
+            format!("RingsMeet: edge {edge_a} of {} meets edge {edge_b} of {}", ring(ring_a), ring(ring_b))
+        }
+        HolesError::HoleOutside(h) => format!("HoleOutside: hole {h} is not inside the outer ring"),
+        HolesError::NestedHoles { outer, inner } => format!("NestedHoles: hole {inner} lies inside hole {outer}"),
+        HolesError::NoBridge(h) => format!("NoBridge: no bridge found for hole {h}"),
+        HolesError::NoEar => "NoEar: ear clipping found no ear".to_string(),
+        HolesError::Sink(e) => map_error(e),
+    }
+}
+
+/// What the whole map would need, against what `StandardMap` holds.
+fn capacity_error(shapes: &[Shape], c: Capacity) -> String {
+    let (mut pieces, mut verts, mut buffered, mut obstacles) = (0usize, 0usize, 0usize, 0usize);
+    for shape in shapes {
+        obstacles += 1;
+        match shape {
+            Shape::Solid { outer, holes } => {
+                let hs: Vec<&[Point]> = holes.iter().map(Vec::as_slice).collect();
+                let _ = split_convex_with_holes::<SPLIT_CAPACITY, ()>(outer, &hs, MAX_PIECE_VERTICES, |p| {
+                    pieces += 1;
+                    verts += p.len();
+                    buffered += p.len() + 8;
+                    Ok(())
+                });
+            }
+            Shape::Wall(line) => {
+                let n = line.windows(2).filter(|s| s[0] != s[1]).count();
+                pieces += n;
+                verts += 2 * n;
+                buffered += 10 * n;
+            }
+        }
+    }
+    let (p_cap, v_cap) = (1024, 12288);
+    format!(
+        "the map exceeds the firmware's capacity ({c:?}) of echoloc::map::StandardMap: it needs {obstacles} obstacles and \
+         {pieces} convex pieces (StandardMap holds {p_cap} of each) and {verts} true + up to {buffered} buffered vertices \
+         (it holds {v_cap} in all); simplify more (--simplify-mm) or split the map"
+    )
 }

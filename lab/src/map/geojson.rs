@@ -1,5 +1,5 @@
 //! GeoJSON (RFC 7946 shapes, planar metres): Polygon and MultiPolygon are
-//! solids, LineString and MultiLineString are walls.
+//! solids (interior rings are holes), LineString and MultiLineString are walls.
 
 use serde_json::Value;
 
@@ -30,10 +30,10 @@ fn geometry(g: &Value, at: &str, out: &mut Vec<Shape>) -> Result<(), String> {
     let ty = g.get("type").and_then(Value::as_str).ok_or_else(|| format!("{at}: no type"))?;
     let coords = g.get("coordinates").ok_or_else(|| format!("{at}: no coordinates"))?;
     match ty {
-        "Polygon" => out.push(Shape::Solid(polygon(coords, &format!("{at}.coordinates"))?)),
+        "Polygon" => out.push(polygon(coords, &format!("{at}.coordinates"))?),
         "MultiPolygon" => {
             for (i, p) in array(coords, at)?.iter().enumerate() {
-                out.push(Shape::Solid(polygon(p, &format!("{at}.coordinates[{i}]"))?));
+                out.push(polygon(p, &format!("{at}.coordinates[{i}]"))?);
             }
         }
         "LineString" => out.push(Shape::Wall(line(coords, &format!("{at}.coordinates"))?)),
@@ -55,22 +55,27 @@ fn array<'a>(v: &'a Value, at: &str) -> Result<&'a Vec<Value>, String> {
     v.as_array().ok_or_else(|| format!("{at}: expected an array"))
 }
 
-fn polygon(v: &Value, at: &str) -> Result<Vec<Point>, String> {
+/// A polygon: the outer ring, then its holes (RFC 7946 §3.1.6; the rings'
+/// orientation is not enforced: the splitter orients them).
+fn polygon(v: &Value, at: &str) -> Result<Shape, String> {
     let rings = array(v, at)?;
-    match rings.len() {
-        0 => Err(format!("{at}: a polygon needs an outer ring")),
-        1 => {
-            let mut ring = line(&rings[0], &format!("{at}[0]"))?;
-            if ring.len() > 1 && ring.first() == ring.last() {
-                ring.pop();
-            }
-            if ring.len() < 3 {
-                return Err(format!("{at}[0]: a ring needs at least three distinct vertices"));
-            }
-            Ok(ring)
-        }
-        n => Err(format!("{at}: polygon with {} hole(s): holes are not supported yet (real-maps issue)", n - 1)),
+    if rings.is_empty() {
+        return Err(format!("{at}: a polygon needs an outer ring"));
     }
+    let mut out = Vec::with_capacity(rings.len());
+    for (k, r) in rings.iter().enumerate() {
+        let mut ring = line(r, &format!("{at}[{k}]"))?;
+        if ring.len() > 1 && ring.first() == ring.last() {
+            ring.pop();
+        }
+        if ring.len() < 3 {
+            let what = if k == 0 { "the outer ring".to_string() } else { format!("hole {}", k - 1) };
+            return Err(format!("{at}[{k}]: {what} needs at least three distinct vertices"));
+        }
+        out.push(ring);
+    }
+    let outer = out.remove(0);
+    Ok(Shape::Solid { outer, holes: out })
 }
 
 fn line(v: &Value, at: &str) -> Result<Vec<Point>, String> {

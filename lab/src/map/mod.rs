@@ -1,21 +1,39 @@
-//! `echoloc-lab map …`: import polygon maps into the firmware's blob.
+//! `echoloc-lab map …`: import polygon maps (GeoJSON, ROS map_server
+//! occupancy grids) into the firmware's blob, inspect, export and preview.
+//!
+//! A ROS map goes: YAML + PGM/PNG → classified cells ([`ros`]) → contours
+//! with holes by marching squares ([`contour`]) → simplification with a
+//! guaranteed error bound that keeps every polygon valid ([`simplify`]) →
+//! convex pieces (`echoloc::geometry::split_convex_with_holes`) → the
+//! firmware's `StandardMap` (buffers, grid) → blob. Nothing is written
+//! unless everything succeeded.
 
 mod build;
+mod contour;
 mod geojson;
+mod render;
+mod ros;
+mod simplify;
 
 use std::fmt;
 use std::path::{Path, PathBuf};
 
-use clap::Subcommand;
+use clap::{Subcommand, ValueEnum};
+use echoloc::geometry::{Point, COORD_MAX};
 use echoloc::map::StandardMap;
 
 pub use build::{build_map, MapSummary, Shape};
 
+/// Import defaults, shared by `map import` and the other commands that read
+/// a map source.
+pub const DEFAULT_SIMPLIFY_MM: u32 = 50;
+
 #[derive(Subcommand)]
 pub enum MapCmd {
-    /// Import a GeoJSON FeatureCollection (metres) into a map blob.
+    /// Import a map into a blob: a ROS map_server `.yaml` (with its PGM/PNG
+    /// image) or a GeoJSON FeatureCollection in metres.
     Import {
-        /// Input map: a `.geojson` file (ROS map_server `.yaml` import comes with the real-maps work).
+        /// Input map: `.yaml` (ROS map_server) or `.geojson`.
         input: PathBuf,
         /// Output blob.
         #[arg(short = 'o', long = "out")]
@@ -26,12 +44,59 @@ pub enum MapCmd {
         /// Grid cell size, mm; grown automatically until the grid fits the firmware's capacity.
         #[arg(long = "cell-mm", default_value_t = 1000)]
         cell_mm: u32,
+        /// Occupancy grids: most distance, mm, between a contour and its simplification (0: none).
+        #[arg(long = "simplify-mm", default_value_t = DEFAULT_SIMPLIFY_MM)]
+        simplify_mm: u32,
+        /// Occupancy grids: what unknown cells count as.
+        #[arg(long = "unknown", value_enum, default_value_t = Unknown::Free)]
+        unknown: Unknown,
+        /// Also write a PNG preview of the polygon map over the source grid.
+        #[arg(long = "preview")]
+        preview: Option<PathBuf>,
     },
     /// Print the summary of a map blob after loading it exactly as the firmware does.
     Info {
         /// The blob.
         map: PathBuf,
     },
+    /// Export a blob's true polygons (convex pieces, metres) as GeoJSON.
+    Export {
+        /// The blob.
+        map: PathBuf,
+        /// Output `.geojson`.
+        #[arg(short = 'o', long = "out")]
+        out: PathBuf,
+    },
+    /// Draw a blob's pieces as a PNG, over the occupancy grid it came from when given.
+    Preview {
+        /// The blob.
+        map: PathBuf,
+        /// Output `.png`.
+        #[arg(short = 'o', long = "out")]
+        out: PathBuf,
+        /// The ROS map_server `.yaml` to draw underneath.
+        #[arg(long = "grid")]
+        grid: Option<PathBuf>,
+        /// What unknown cells of the grid count as (for the drawing).
+        #[arg(long = "unknown", value_enum, default_value_t = Unknown::Free)]
+        unknown: Unknown,
+    },
+}
+
+/// What unknown cells of an occupancy grid count as.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum Unknown {
+    Free,
+    Occupied,
+}
+
+impl Unknown {
+    fn name(self) -> &'static str {
+        match self {
+            Unknown::Free => "free",
+            Unknown::Occupied => "occupied",
+        }
+    }
 }
 
 /// An error that names the file (and, where known, the place in it).
@@ -46,45 +111,263 @@ impl fmt::Display for LabError {
 
 impl std::error::Error for LabError {}
 
-pub fn run(cmd: MapCmd) -> Result<String, LabError> {
-    match cmd {
-        MapCmd::Import { input, out, buffer_mm, cell_mm } => {
-            let shapes = read_shapes(&input)?;
-            let (blob, summary) =
-                build_map(&shapes, buffer_mm, cell_mm).map_err(|e| LabError(format!("{}: {e}", input.display())))?;
-            write_atomically(&out, &blob)?;
-            Ok(summary.to_json())
-        }
-        MapCmd::Info { map } => {
-            let bytes = std::fs::read(&map).map_err(|e| LabError(format!("{}: {e}", map.display())))?;
-            let mut m: Box<StandardMap> = Box::default();
-            m.load(&bytes).map_err(|e| LabError(format!("{}: not a valid map blob: {e:?}", map.display())))?;
-            Ok(MapSummary::of(&m, m.obstacles().len(), bytes.len()).to_json())
+/// Why a map could not be read, built or written. Each names the file and,
+/// where there is one, the field.
+#[derive(Debug)]
+pub enum ImportError {
+    /// Reading or writing a file failed.
+    Io { path: PathBuf, source: std::io::Error },
+    /// A field of a description file (YAML key, GeoJSON member) is missing or wrong.
+    Field { path: PathBuf, field: String, problem: String },
+    /// The image a YAML's `image` field names is missing or unusable.
+    Image { yaml: PathBuf, image: PathBuf, problem: String },
+    /// The content is well-formed but cannot become a map (geometry, capacity).
+    Content { path: PathBuf, problem: String },
+}
+
+impl fmt::Display for ImportError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            ImportError::Io { path, source } => write!(f, "{}: {source}", path.display()),
+            ImportError::Field { path, field, problem } => write!(f, "{}: {field}: {problem}", path.display()),
+            ImportError::Image { yaml, image, problem } => {
+                write!(f, "{}: image: {}: {problem}", yaml.display(), image.display())
+            }
+            ImportError::Content { path, problem } => write!(f, "{}: {problem}", path.display()),
         }
     }
 }
 
-/// Reads a map source by its extension.
+impl std::error::Error for ImportError {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match self {
+            ImportError::Io { source, .. } => Some(source),
+            _ => None,
+        }
+    }
+}
+
+impl From<ImportError> for LabError {
+    fn from(e: ImportError) -> Self {
+        LabError(e.to_string())
+    }
+}
+
+/// How a map source is read.
+#[derive(Clone, Copy, Debug)]
+pub struct ImportOptions {
+    pub simplify_mm: u32,
+    pub unknown: Unknown,
+}
+
+impl Default for ImportOptions {
+    fn default() -> Self {
+        Self { simplify_mm: DEFAULT_SIMPLIFY_MM, unknown: Unknown::Free }
+    }
+}
+
+/// What was read: the shapes, the grid they came from (for ROS maps), and
+/// figures for the summary.
+pub struct Source {
+    pub shapes: Vec<Shape>,
+    pub grid: Option<ros::Grid>,
+    pub extra: serde_json::Map<String, serde_json::Value>,
+}
+
+pub fn run(cmd: MapCmd) -> Result<String, LabError> {
+    // Splitting a large polygon needs a few MB of stack (fixed-capacity
+    // working sets, as on the firmware side): run on a thread that has them.
+    std::thread::Builder::new()
+        .stack_size(256 << 20)
+        .spawn(move || run_here(cmd))
+        .map_err(|e| LabError(format!("cannot start the worker thread: {e}")))?
+        .join()
+        .unwrap_or_else(|_| Err(LabError("internal error: the map worker panicked".into())))
+}
+
+fn run_here(cmd: MapCmd) -> Result<String, LabError> {
+    match cmd {
+        MapCmd::Import { input, out, buffer_mm, cell_mm, simplify_mm, unknown, preview } => {
+            let src = read_source(&input, &ImportOptions { simplify_mm, unknown })?;
+            let (blob, mut summary) = build_map(&src.shapes, buffer_mm, cell_mm)
+                .map_err(|e| ImportError::Content { path: input.clone(), problem: e })?;
+            summary.extra = src.extra;
+            // Everything is computed before anything is written.
+            let png = match &preview {
+                Some(_) => {
+                    let mut m: Box<StandardMap> = Box::default();
+                    m.load(&blob)
+                        .map_err(|e| LabError(format!("{}: the new blob does not load: {e:?}", out.display())))?;
+                    Some(render::preview(&m, src.grid.as_ref(), unknown))
+                }
+                None => None,
+            };
+            write_atomically(&out, &blob)?;
+            if let (Some(p), Some(png)) = (&preview, png) {
+                if let Err(e) = write_atomically(p, &png) {
+                    let _ = std::fs::remove_file(&out);
+                    return Err(e);
+                }
+            }
+            Ok(summary.to_json())
+        }
+        MapCmd::Info { map } => {
+            let (m, bytes) = load_blob(&map)?;
+            Ok(MapSummary::of(&m, m.obstacles().len(), bytes).to_json())
+        }
+        MapCmd::Export { map, out } => {
+            let (m, _) = load_blob(&map)?;
+            let json = render::geojson(&m);
+            write_atomically(&out, json.to_string().as_bytes())?;
+            Ok(serde_json::json!({
+                "features": m.obstacles().len(),
+                "convex_pieces": m.piece_count(),
+                "out": out.display().to_string(),
+            })
+            .to_string())
+        }
+        MapCmd::Preview { map, out, grid, unknown } => {
+            let (m, _) = load_blob(&map)?;
+            let grid = grid.map(|g| ros::load(&g)).transpose()?;
+            let png = render::preview(&m, grid.as_ref(), unknown);
+            write_atomically(&out, &png)?;
+            Ok(serde_json::json!({ "out": out.display().to_string(), "bytes": png.len() }).to_string())
+        }
+    }
+}
+
+fn load_blob(path: &Path) -> Result<(Box<StandardMap>, usize), LabError> {
+    let bytes = std::fs::read(path).map_err(|e| ImportError::Io { path: path.to_path_buf(), source: e })?;
+    let mut m: Box<StandardMap> = Box::default();
+    m.load(&bytes).map_err(|e| LabError(format!("{}: not a valid map blob: {e:?}", path.display())))?;
+    Ok((m, bytes.len()))
+}
+
+/// Reads a map source by its extension, with the default import options.
 pub fn read_shapes(input: &Path) -> Result<Vec<Shape>, LabError> {
+    Ok(read_source(input, &ImportOptions::default())?.shapes)
+}
+
+/// Reads a map source by its extension.
+pub fn read_source(input: &Path, opt: &ImportOptions) -> Result<Source, ImportError> {
     let ext = input.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
     match ext.as_str() {
         "geojson" | "json" => {
-            let text = std::fs::read_to_string(input).map_err(|e| LabError(format!("{}: {e}", input.display())))?;
-            geojson::parse(&text).map_err(|e| LabError(format!("{}: {e}", input.display())))
+            let text =
+                std::fs::read_to_string(input).map_err(|e| ImportError::Io { path: input.to_path_buf(), source: e })?;
+            let shapes =
+                geojson::parse(&text).map_err(|e| ImportError::Content { path: input.to_path_buf(), problem: e })?;
+            let mut extra = serde_json::Map::new();
+            extra.insert("source".into(), "geojson".into());
+            Ok(Source { shapes, grid: None, extra })
         }
-        "yaml" | "yml" => Err(LabError(format!(
-            "{}: ROS map_server import is not built yet (it comes with the real-maps issue); use a .geojson map",
-            input.display()
-        ))),
-        _ => Err(LabError(format!("{}: unknown map format (expected .geojson or .yaml)", input.display()))),
+        "yaml" | "yml" => {
+            let grid = ros::load(input)?;
+            let (shapes, extra) = grid_shapes(input, &grid, opt)?;
+            Ok(Source { shapes, grid: Some(grid), extra })
+        }
+        _ => Err(ImportError::Content {
+            path: input.to_path_buf(),
+            problem: "unknown map format (expected .geojson or .yaml)".into(),
+        }),
     }
+}
+
+/// The polygons of an occupancy grid, in mm, simplified.
+fn grid_shapes(
+    path: &Path,
+    grid: &ros::Grid,
+    opt: &ImportOptions,
+) -> Result<(Vec<Shape>, serde_json::Map<String, serde_json::Value>), ImportError> {
+    let y = &grid.yaml;
+    // The map's extent must stay within ±COORD_MAX so every predicate is exact.
+    let lim = COORD_MAX as f64;
+    for (k, o) in [("origin[0]", y.origin[0]), ("origin[1]", y.origin[1])] {
+        if (o * 1000.0).abs() > lim {
+            return Err(ImportError::Field {
+                path: path.to_path_buf(),
+                field: k.into(),
+                problem: format!("{o} m is beyond ±{} m (coordinates would overflow)", COORD_MAX / 1000),
+            });
+        }
+    }
+    let far_x = y.origin[0] * 1000.0 + grid.width as f64 * y.resolution * 1000.0;
+    let far_y = y.origin[1] * 1000.0 + grid.height as f64 * y.resolution * 1000.0;
+    if far_x.abs() > lim || far_y.abs() > lim {
+        return Err(ImportError::Field {
+            path: path.to_path_buf(),
+            field: "resolution".into(),
+            problem: format!(
+                "{} m × {}×{} cells from the origin reaches ({:.0}, {:.0}) m, beyond ±{} m (coordinates would overflow)",
+                y.resolution,
+                grid.width,
+                grid.height,
+                far_x / 1000.0,
+                far_y / 1000.0,
+                COORD_MAX / 1000
+            ),
+        });
+    }
+    let occ: Vec<bool> = grid
+        .cells
+        .iter()
+        .map(|&c| c == ros::Cell::Occupied || (c == ros::Cell::Unknown && opt.unknown == Unknown::Occupied))
+        .collect();
+    let polys = contour::trace(&occ, grid.width, grid.height);
+    let half = y.resolution * 500.0;
+    let to_mm = |r: &[(i64, i64)]| -> Vec<Point> {
+        r.iter()
+            .map(|&(u, v)| {
+                Point::new(
+                    (y.origin[0] * 1000.0 + u as f64 * half).round() as i32,
+                    (y.origin[1] * 1000.0 + v as f64 * half).round() as i32,
+                )
+            })
+            .collect()
+    };
+    let mut shapes = Vec::with_capacity(polys.len());
+    let (mut holes_in, mut holes_out, mut verts_in, mut verts_out) = (0, 0, 0, 0);
+    for p in &polys {
+        let outer = to_mm(&p.outer);
+        let holes: Vec<Vec<Point>> = p.holes.iter().map(|h| to_mm(h)).collect();
+        holes_in += holes.len();
+        verts_in += outer.len() + holes.iter().map(Vec::len).sum::<usize>();
+        let (outer, holes) = simplify::simplify(&outer, &holes, opt.simplify_mm);
+        holes_out += holes.len();
+        verts_out += outer.len() + holes.iter().map(Vec::len).sum::<usize>();
+        shapes.push(Shape::Solid { outer, holes });
+    }
+    let count = |c: ros::Cell| grid.cells.iter().filter(|&&x| x == c).count();
+    let mut extra = serde_json::Map::new();
+    extra.insert("source".into(), "ros_map_server".into());
+    extra.insert("image".into(), y.image.display().to_string().into());
+    extra.insert("size_cells".into(), serde_json::json!([grid.width, grid.height]));
+    extra.insert("resolution_m".into(), y.resolution.into());
+    extra.insert(
+        "cells".into(),
+        serde_json::json!({
+            "occupied": count(ros::Cell::Occupied),
+            "free": count(ros::Cell::Free),
+            "unknown": count(ros::Cell::Unknown),
+        }),
+    );
+    extra.insert("unknown_as".into(), opt.unknown.name().into());
+    extra.insert("simplify_mm".into(), opt.simplify_mm.into());
+    extra.insert("contour_vertices".into(), verts_in.into());
+    extra.insert("simplified_vertices".into(), verts_out.into());
+    extra.insert("holes".into(), holes_out.into());
+    extra.insert("holes_dropped".into(), (holes_in - holes_out).into());
+    Ok((shapes, extra))
 }
 
 /// Writes `bytes` to `path` through a temporary file and a rename, so that a
 /// failure never leaves a partial file behind.
 pub fn write_atomically(path: &Path, bytes: &[u8]) -> Result<(), LabError> {
     let tmp = path.with_extension("partial");
-    std::fs::write(&tmp, bytes).map_err(|e| LabError(format!("{}: {e}", tmp.display())))?;
+    std::fs::write(&tmp, bytes).map_err(|e| {
+        let _ = std::fs::remove_file(&tmp);
+        ImportError::Io { path: tmp.clone(), source: e }
+    })?;
     std::fs::rename(&tmp, path).map_err(|e| {
         let _ = std::fs::remove_file(&tmp);
         LabError(format!("{}: {e}", path.display()))

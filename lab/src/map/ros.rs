@@ -1,0 +1,421 @@
+//! ROS map_server maps: the YAML description and its PGM or PNG image,
+//! classified into free, occupied and unknown cells by map_server's rules.
+//!
+//! The YAML is flat (`key: value` lines, `origin` a flow list), so a small
+//! parser reads it; every problem names the YAML file and the field. PGM
+//! (P5 binary and P2 ASCII, up to 8 bits) is read here; PNG (1–8 bits,
+//! grey, grey+alpha, RGB, RGBA, palette) with the `png` crate. 16-bit images
+//! are refused (map_server reads 8-bit data).
+
+use std::fs;
+use std::path::{Path, PathBuf};
+
+use super::ImportError;
+
+/// map_server's `mode`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Mode {
+    /// Occupied, free, or unknown by the thresholds.
+    Trinary,
+    /// Like trinary for our purpose (in-between shades are unknown: the map
+    /// holds only obstacles), but transparent pixels are unknown.
+    Scale,
+    /// The pixel value is the occupancy in percent (0–100); anything above
+    /// 100 (255 is ROS's −1) is unknown.
+    Raw,
+}
+
+/// The YAML's contents.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MapYaml {
+    /// The image, resolved against the YAML's directory.
+    pub image: PathBuf,
+    /// Metres per cell.
+    pub resolution: f64,
+    /// The lower-left corner of the lower-left cell, metres, and the yaw.
+    pub origin: [f64; 3],
+    /// Whether white means occupied.
+    pub negate: bool,
+    /// Occupancy probability above which a cell is occupied.
+    pub occupied_thresh: f64,
+    /// Occupancy probability below which a cell is free.
+    pub free_thresh: f64,
+    /// How pixels become occupancy.
+    pub mode: Mode,
+}
+
+/// A cell's class.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Cell {
+    Free,
+    Occupied,
+    Unknown,
+}
+
+/// The classified grid. Row 0 is the top of the image (the map's largest y).
+#[derive(Clone, Debug)]
+pub struct Grid {
+    pub width: usize,
+    pub height: usize,
+    pub cells: Vec<Cell>,
+    pub yaml: MapYaml,
+}
+
+impl Grid {
+    /// The cell in image column `c`, image row `r`.
+    pub fn at(&self, c: usize, r: usize) -> Cell {
+        self.cells[r * self.width + c]
+    }
+}
+
+fn field(path: &Path, field: &str, problem: impl Into<String>) -> ImportError {
+    ImportError::Field { path: path.to_path_buf(), field: field.to_string(), problem: problem.into() }
+}
+
+/// Parses the YAML text of the map at `path` (used in messages and to
+/// resolve `image`).
+pub fn parse_yaml(path: &Path, text: &str) -> Result<MapYaml, ImportError> {
+    let mut kv: Vec<(String, String, usize)> = Vec::new();
+    for (ln, raw) in text.lines().enumerate() {
+        let line = strip_comment(raw).trim_end();
+        if line.trim().is_empty() || line.trim() == "---" {
+            continue;
+        }
+        let Some((k, v)) = line.split_once(':') else {
+            return Err(field(
+                path,
+                &format!("line {}", ln + 1),
+                format!("expected `key: value`, found {:?}", raw.trim()),
+            ));
+        };
+        let k = k.trim().to_string();
+        if kv.iter().any(|(q, _, _)| *q == k) {
+            return Err(field(path, &k, format!("given twice (line {})", ln + 1)));
+        }
+        kv.push((k, unquote(v.trim()).to_string(), ln + 1));
+    }
+    let get = |k: &str| kv.iter().find(|(q, _, _)| q == k).map(|(_, v, _)| v.as_str());
+    let need = |k: &str| get(k).ok_or_else(|| field(path, k, "missing (required by map_server)"));
+    let number = |k: &str, v: &str| -> Result<f64, ImportError> {
+        v.parse::<f64>()
+            .ok()
+            .filter(|x| x.is_finite())
+            .ok_or_else(|| field(path, k, format!("expected a number, found {v:?}")))
+    };
+
+    let image = need("image")?;
+    if image.is_empty() {
+        return Err(field(path, "image", "empty"));
+    }
+    let image = path.parent().unwrap_or(Path::new(".")).join(image);
+    let resolution = number("resolution", need("resolution")?)?;
+    if resolution < 0.002 {
+        return Err(field(path, "resolution", format!("{resolution} m per cell: must be at least 0.002 (2 mm)")));
+    }
+    let o = need("origin")?;
+    let inner = o
+        .strip_prefix('[')
+        .and_then(|s| s.strip_suffix(']'))
+        .ok_or_else(|| field(path, "origin", format!("expected [x, y, yaw], found {o:?}")))?;
+    let parts: Vec<&str> = inner.split(',').map(str::trim).collect();
+    if parts.len() != 3 {
+        return Err(field(path, "origin", format!("expected three numbers [x, y, yaw], found {}", parts.len())));
+    }
+    let mut origin = [0.0; 3];
+    for (i, p) in parts.iter().enumerate() {
+        origin[i] = number(&format!("origin[{i}]"), p)?;
+    }
+    if origin[2] != 0.0 {
+        return Err(field(
+            path,
+            "origin[2]",
+            format!("yaw {} rad: rotated maps are not supported (map_server itself mostly ignores yaw)", origin[2]),
+        ));
+    }
+    let negate = match need("negate")? {
+        "0" | "false" | "False" => false,
+        "1" | "true" | "True" => true,
+        v => return Err(field(path, "negate", format!("expected 0 or 1, found {v:?}"))),
+    };
+    let occupied_thresh = number("occupied_thresh", need("occupied_thresh")?)?;
+    let free_thresh = number("free_thresh", need("free_thresh")?)?;
+    for (k, v) in [("occupied_thresh", occupied_thresh), ("free_thresh", free_thresh)] {
+        if !(0.0..=1.0).contains(&v) {
+            return Err(field(path, k, format!("{v} is outside 0..=1")));
+        }
+    }
+    if free_thresh >= occupied_thresh {
+        return Err(field(
+            path,
+            "free_thresh",
+            format!("{free_thresh} must be below occupied_thresh ({occupied_thresh})"),
+        ));
+    }
+    let mode = match get("mode") {
+        None | Some("trinary") => Mode::Trinary,
+        Some("scale") => Mode::Scale,
+        Some("raw") => Mode::Raw,
+        Some(v) => return Err(field(path, "mode", format!("expected trinary, scale or raw, found {v:?}"))),
+    };
+    Ok(MapYaml { image, resolution, origin, negate, occupied_thresh, free_thresh, mode })
+}
+
+fn strip_comment(line: &str) -> &str {
+    let mut quote = None;
+    for (i, ch) in line.char_indices() {
+        match (quote, ch) {
+            (None, '"' | '\'') => quote = Some(ch),
+            (Some(q), c) if c == q => quote = None,
+            (None, '#') if i == 0 || line[..i].ends_with(char::is_whitespace) => return &line[..i],
+            _ => {}
+        }
+    }
+    line
+}
+
+fn unquote(v: &str) -> &str {
+    for q in ['"', '\''] {
+        if let Some(s) = v.strip_prefix(q).and_then(|s| s.strip_suffix(q)) {
+            return s;
+        }
+    }
+    v
+}
+
+#[derive(Debug)]
+/// An 8-bit image: the average of the colour channels per pixel, and the
+/// alpha channel when there is one.
+pub struct Image {
+    pub width: usize,
+    pub height: usize,
+    pub value: Vec<u8>,
+    pub alpha: Option<Vec<u8>>,
+}
+
+/// Reads the map's image (PGM or PNG, by its content). Errors name the YAML
+/// file, the `image` field and the image file.
+pub fn read_image(yaml_path: &Path, image: &Path) -> Result<Image, ImportError> {
+    let bad =
+        |problem: String| ImportError::Image { yaml: yaml_path.to_path_buf(), image: image.to_path_buf(), problem };
+    let bytes = fs::read(image).map_err(|e| bad(format!("cannot read: {e}")))?;
+    let img = if bytes.starts_with(b"P5") || bytes.starts_with(b"P2") {
+        read_pgm(&bytes).map_err(bad)?
+    } else if bytes.starts_with(b"\x89PNG\r\n\x1a\n") {
+        read_png(&bytes).map_err(bad)?
+    } else {
+        return Err(bad("not a PGM (P5/P2) or PNG image".into()));
+    };
+    if img.width == 0 || img.height == 0 {
+        return Err(bad(format!("empty image ({}x{})", img.width, img.height)));
+    }
+    Ok(img)
+}
+
+fn read_pgm(b: &[u8]) -> Result<Image, String> {
+    let ascii = b[1] == b'2';
+    let mut pos = 2;
+    let mut header = [0usize; 3];
+    for (k, name) in ["width", "height", "maxval"].iter().enumerate() {
+        header[k] = pgm_token(b, &mut pos).ok_or_else(|| format!("PGM header: missing or bad {name}"))?;
+    }
+    let [width, height, maxval] = header;
+    if maxval == 0 || maxval > 65535 {
+        return Err(format!("PGM header: maxval {maxval} is out of range"));
+    }
+    if maxval > 255 {
+        return Err(format!("unsupported image depth: 16-bit PGM (maxval {maxval}); map_server maps are 8-bit"));
+    }
+    let n = width.checked_mul(height).filter(|&n| n <= 1 << 28).ok_or("PGM header: image too large")?;
+    let scale = |v: usize| ((v * 255 + maxval / 2) / maxval) as u8;
+    let mut value = Vec::with_capacity(n);
+    if ascii {
+        for i in 0..n {
+            let v =
+                pgm_token(b, &mut pos).ok_or_else(|| format!("P2 data: pixel {i} of {n} missing or not a number"))?;
+            if v > maxval {
+                return Err(format!("P2 data: pixel {i} = {v} exceeds maxval {maxval}"));
+            }
+            value.push(scale(v));
+        }
+    } else {
+        // Exactly one whitespace byte after maxval, then the raster.
+        pos += 1;
+        let data = b
+            .get(pos..pos + n)
+            .ok_or_else(|| format!("P5 data: {} bytes, expected {n}", b.len().saturating_sub(pos)))?;
+        value.extend(data.iter().map(|&v| scale(v as usize)));
+    }
+    Ok(Image { width, height, value, alpha: None })
+}
+
+/// The next decimal token, skipping whitespace and `#` comments.
+fn pgm_token(b: &[u8], pos: &mut usize) -> Option<usize> {
+    loop {
+        match b.get(*pos)? {
+            c if c.is_ascii_whitespace() => *pos += 1,
+            b'#' => {
+                while *b.get(*pos)? != b'\n' {
+                    *pos += 1;
+                }
+            }
+            _ => break,
+        }
+    }
+    let start = *pos;
+    while b.get(*pos).is_some_and(u8::is_ascii_digit) {
+        *pos += 1;
+    }
+    std::str::from_utf8(&b[start..*pos]).ok()?.parse().ok()
+}
+
+fn read_png(b: &[u8]) -> Result<Image, String> {
+    let mut dec = png::Decoder::new(b);
+    dec.set_transformations(png::Transformations::EXPAND);
+    let mut reader = dec.read_info().map_err(|e| format!("PNG: {e}"))?;
+    let depth = reader.info().bit_depth;
+    if depth == png::BitDepth::Sixteen {
+        return Err("unsupported image depth: 16-bit PNG; map_server maps are 8-bit".into());
+    }
+    let mut buf = vec![0; reader.output_buffer_size()];
+    let frame = reader.next_frame(&mut buf).map_err(|e| format!("PNG: {e}"))?;
+    let (width, height) = (frame.width as usize, frame.height as usize);
+    let (channels, has_alpha) = match frame.color_type {
+        png::ColorType::Grayscale => (1, false),
+        png::ColorType::GrayscaleAlpha => (2, true),
+        png::ColorType::Rgb => (3, false),
+        png::ColorType::Rgba => (4, true),
+        png::ColorType::Indexed => return Err("PNG: palette not expanded".into()),
+    };
+    if frame.bit_depth != png::BitDepth::Eight {
+        return Err(format!("unsupported image depth: {:?} after expansion", frame.bit_depth));
+    }
+    let colours = if has_alpha { channels - 1 } else { channels };
+    let mut value = Vec::with_capacity(width * height);
+    let mut alpha = has_alpha.then(|| Vec::with_capacity(width * height));
+    for r in 0..height {
+        let row = &buf[r * frame.line_size..][..width * channels];
+        for px in row.chunks_exact(channels) {
+            let sum: usize = px[..colours].iter().map(|&v| v as usize).sum();
+            value.push(((sum + colours / 2) / colours) as u8);
+            if let Some(a) = alpha.as_mut() {
+                a.push(px[channels - 1]);
+            }
+        }
+    }
+    Ok(Image { width, height, value, alpha })
+}
+
+/// map_server's classification of one pixel (ROS 1 `map_server`
+/// image_loader and Nav2 `map_io`): `occ = (255 − v) / 255` (with `v`
+/// first replaced by `255 − v` under `negate`); occupied when `occ >
+/// occupied_thresh`, free when `occ < free_thresh`. `raw` reads `v` as a
+/// percentage instead. A transparent pixel (alpha < 255) is unknown except
+/// in `raw` mode.
+pub fn classify(y: &MapYaml, value: u8, alpha: Option<u8>) -> Cell {
+    let v = if y.negate { 255 - value } else { value };
+    match y.mode {
+        Mode::Raw => {
+            let p = v as f64;
+            if v > 100 {
+                Cell::Unknown
+            } else if p > y.occupied_thresh * 100.0 {
+                Cell::Occupied
+            } else if p < y.free_thresh * 100.0 {
+                Cell::Free
+            } else {
+                Cell::Unknown
+            }
+        }
+        Mode::Trinary | Mode::Scale => {
+            if alpha.is_some_and(|a| a < 255) {
+                return Cell::Unknown;
+            }
+            let occ = (255.0 - v as f64) / 255.0;
+            if occ > y.occupied_thresh {
+                Cell::Occupied
+            } else if occ < y.free_thresh {
+                Cell::Free
+            } else {
+                Cell::Unknown
+            }
+        }
+    }
+}
+
+/// Reads and classifies the map described by the YAML file at `path`.
+pub fn load(path: &Path) -> Result<Grid, ImportError> {
+    let text = fs::read_to_string(path).map_err(|e| ImportError::Io { path: path.to_path_buf(), source: e })?;
+    let yaml = parse_yaml(path, &text)?;
+    let img = read_image(path, &yaml.image)?;
+    let cells =
+        (0..img.width * img.height).map(|i| classify(&yaml, img.value[i], img.alpha.as_ref().map(|a| a[i]))).collect();
+    Ok(Grid { width: img.width, height: img.height, cells, yaml })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn yaml(text: &str) -> Result<MapYaml, ImportError> {
+        parse_yaml(Path::new("/m/x.yaml"), text)
+    }
+
+    const OK: &str = "image: a.pgm\nresolution: 0.05\norigin: [-1.5, 2, 0.0]\nnegate: 0\noccupied_thresh: 0.65\nfree_thresh: 0.196 # comment\n";
+
+    #[test]
+    fn parses_the_flat_format() {
+        let y = yaml(OK).unwrap();
+        assert_eq!(y.image, Path::new("/m/a.pgm"));
+        assert_eq!(y.origin, [-1.5, 2.0, 0.0]);
+        assert_eq!(y.mode, Mode::Trinary);
+        assert!(!y.negate);
+        let y = yaml(&format!("{OK}mode: raw\n")).unwrap();
+        assert_eq!(y.mode, Mode::Raw);
+    }
+
+    #[test]
+    fn field_errors_name_the_field() {
+        let cases = [
+            (OK.replace("resolution: 0.05\n", ""), "resolution: missing"),
+            (OK.replace("0.05", "fast"), "resolution: expected a number"),
+            (OK.replace("[-1.5, 2, 0.0]", "[1, 2]"), "origin: expected three numbers"),
+            (OK.replace("[-1.5, 2, 0.0]", "[1, 2, 0.3]"), "origin[2]: yaw"),
+            (OK.replace("negate: 0", "negate: maybe"), "negate: expected 0 or 1"),
+            (OK.replace("0.65", "1.5"), "occupied_thresh: 1.5 is outside"),
+            (OK.replace("0.196", "0.7"), "free_thresh: 0.7 must be below"),
+            (format!("{OK}mode: fuzzy\n"), "mode: expected trinary"),
+            (format!("{OK}image: b.pgm\n"), "image: given twice"),
+        ];
+        for (text, want) in cases {
+            let e = yaml(&text).unwrap_err().to_string();
+            assert!(e.contains("/m/x.yaml") && e.contains(want), "{want}: {e}");
+        }
+    }
+
+    #[test]
+    fn classification_follows_map_server() {
+        let y = yaml(OK).unwrap();
+        assert_eq!(classify(&y, 0, None), Cell::Occupied);
+        assert_eq!(classify(&y, 254, None), Cell::Free);
+        assert_eq!(classify(&y, 205, None), Cell::Unknown); // occ 0.19608 > 0.196
+        assert_eq!(classify(&y, 206, None), Cell::Free);
+        assert_eq!(classify(&y, 254, Some(0)), Cell::Unknown);
+        let n = MapYaml { negate: true, ..y.clone() };
+        assert_eq!(classify(&n, 255, None), Cell::Occupied);
+        let raw = MapYaml { mode: Mode::Raw, ..y };
+        assert_eq!(classify(&raw, 100, None), Cell::Occupied);
+        assert_eq!(classify(&raw, 0, None), Cell::Free);
+        assert_eq!(classify(&raw, 255, None), Cell::Unknown);
+        assert_eq!(classify(&raw, 50, None), Cell::Unknown);
+    }
+
+    #[test]
+    fn pgm_p2_and_p5() {
+        let p2 = read_pgm(b"P2\n# c\n3 1\n15\n0 15 7\n").unwrap();
+        assert_eq!(p2.value, vec![0, 255, 119]);
+        let p5 = read_pgm(b"P5 2 1 255\n\x00\xff").unwrap();
+        assert_eq!(p5.value, vec![0, 255]);
+        assert!(read_pgm(b"P5 2 1 65535\n\x00\x00\x00\x00").unwrap_err().contains("unsupported image depth"));
+        assert!(read_pgm(b"P5 2 2 255\n\x00").unwrap_err().contains("P5 data"));
+    }
+}
