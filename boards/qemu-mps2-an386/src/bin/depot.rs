@@ -1,0 +1,128 @@
+//! echoloc on QEMU's `mps2-an386` with a real map: the Nav2 `depot`
+//! occupancy grid, imported by `echoloc-lab map import
+//! ../shared/data/maps/depot.yaml` (marching squares, 50 mm simplification,
+//! convex pieces with holes). Loads the blob into a `StandardMap`, prints
+//! what it holds, runs segment queries across the depot and exits through
+//! semihosting: 0 when the map loaded and every query found what a person
+//! looking at the depot would expect, 1 otherwise (HardFault and panic too).
+//!
+//! `cargo run -p qemu-mps2-an386 --bin depot --target thumbv7em-none-eabihf --release`
+#![no_std]
+#![no_main]
+
+use cortex_m_rt::{entry, exception, ExceptionFrame};
+use cortex_m_semihosting::{debug, hprintln};
+use echoloc::geometry::{Point, Segment};
+use echoloc::map::{Layer, StandardMap};
+use static_cell::ConstStaticCell;
+
+/// The map lives in a static, initialised at compile time: no stack copy.
+static MAP: ConstStaticCell<StandardMap> = ConstStaticCell::new(StandardMap::new());
+/// The blob stays in flash.
+static BLOB: &[u8] = include_bytes!("../../depot.map");
+
+/// Segment queries, mm: (from, to, whether the true map should be hit, what).
+/// The depot is 30.2 m × 15.35 m with its origin at the lower-left corner.
+const QUERIES: [(Point, Point, bool, &str); 5] = [
+    (Point::new(5000, 10000), Point::new(-1000, 10000), true, "west from the open floor to the outer wall"),
+    (Point::new(5000, 10000), Point::new(5000, 16000), true, "north to the outer wall"),
+    (Point::new(5000, 10000), Point::new(12000, 10000), false, "east across the open floor"),
+    (Point::new(8000, 2000), Point::new(8000, 20000), true, "north along x = 8 m through the whole depot"),
+    (Point::new(1000, 1000), Point::new(29000, 14000), true, "the long diagonal, through the rooms"),
+];
+
+#[entry]
+fn main() -> ! {
+    hprintln!("echoloc {} on mps2-an386: depot map", env!("CARGO_PKG_VERSION"));
+    let map = MAP.take();
+    if let Err(e) = map.load(BLOB) {
+        hprintln!("FAIL: depot blob refused: {:?}", e);
+        exit(false);
+    }
+    let (cell, cols, rows) = map.grid_dims();
+    let b = map.bounds();
+    hprintln!(
+        "map: {} bytes, {} obstacles, {} convex pieces, {} true vertices ({} with buffers), t_b {} mm, grid {}x{} of {} mm, {} refs",
+        BLOB.len(),
+        map.obstacles().len(),
+        map.piece_count(),
+        map.true_vertex_count(),
+        map.vertex_count(),
+        map.buffer_mm(),
+        cols,
+        rows,
+        cell,
+        map.grid_refs()
+    );
+    if let Some(b) = b {
+        hprintln!("bounds: ({}, {}) .. ({}, {}) mm", b.min.x, b.min.y, b.max.x, b.max.y);
+    }
+    let mut ok = true;
+    for (i, &(a, z, expect, what)) in QUERIES.iter().enumerate() {
+        let seg = Segment::new(a, z);
+        let mut buffered = 0u32;
+        let (Ok(first), Ok(stats)) = (map.first_hit(seg), map.for_each_hit(seg, Layer::Buffered, |_| buffered += 1))
+        else {
+            hprintln!("FAIL: query on an unfinished map");
+            exit(false);
+        };
+        match first {
+            Some(h) => hprintln!(
+                "q{} {}: first hit obstacle {} piece {} at ({}, {}) mm, range {} mm; {} buffered hits; {} cells, {} candidates",
+                i,
+                what,
+                h.obstacle,
+                h.piece,
+                h.point.x,
+                h.point.y,
+                isqrt(a.dist2(h.point) as u64),
+                buffered,
+                stats.cells,
+                stats.candidates
+            ),
+            None => hprintln!(
+                "q{} {}: no hit; {} buffered hits; {} cells, {} candidates",
+                i,
+                what,
+                buffered,
+                stats.cells,
+                stats.candidates
+            ),
+        }
+        if first.is_some() != expect {
+            hprintln!("FAIL: q{} expected {}", i, if expect { "a hit" } else { "no hit" });
+            ok = false;
+        }
+    }
+    exit(ok);
+}
+
+fn isqrt(v: u64) -> u64 {
+    let mut x = v;
+    let mut y = x.div_ceil(2);
+    while y < x {
+        x = y;
+        y = (x + v / x) / 2;
+    }
+    x
+}
+
+fn exit(ok: bool) -> ! {
+    debug::exit(if ok { debug::EXIT_SUCCESS } else { debug::EXIT_FAILURE });
+    // Only reached when semihosting is off (no debugger): stop here.
+    loop {
+        cortex_m::asm::wfi();
+    }
+}
+
+#[exception]
+unsafe fn HardFault(ef: &ExceptionFrame) -> ! {
+    hprintln!("HardFault at pc {:#010x}", ef.pc());
+    exit(false)
+}
+
+#[panic_handler]
+fn panic(info: &core::panic::PanicInfo) -> ! {
+    hprintln!("panic: {}", info);
+    exit(false)
+}
