@@ -210,6 +210,26 @@ fn conflicts(rings: &[&[Point]], simple: &[Vec<usize>]) -> Vec<(usize, usize)> {
     bad.into_iter().collect()
 }
 
+/// Whether `p` lies strictly inside the ring (winding number, exact).
+pub fn strictly_inside(ring: &[Point], p: Point) -> bool {
+    let n = ring.len();
+    let mut wn = 0i32;
+    for i in 0..n {
+        let (a, b) = (ring[i], ring[(i + 1) % n]);
+        if echoloc::geometry::point_on_segment(p, a, b) {
+            return false;
+        }
+        if a.y <= p.y {
+            if b.y > p.y && orient(a, b, p) > 0 {
+                wn += 1;
+            }
+        } else if b.y <= p.y && orient(a, b, p) < 0 {
+            wn -= 1;
+        }
+    }
+    wn != 0
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -241,7 +261,7 @@ mod tests {
         // the dip (within tol = 100) would cut the hole: refinement keeps it.
         let outer = pts(&[(0, 0), (500, -90), (1000, 0), (1000, 1000), (0, 1000)]);
         let hole = pts(&[(400, -30), (700, -30), (700, 300), (400, 300)]);
-        let (o, h) = simplify(&outer, &[hole.clone()], 100);
+        let (o, h) = simplify(&outer, std::slice::from_ref(&hole), 100);
         assert_eq!(h.len(), 1);
         assert!(o.contains(&Point::new(500, -90)), "{o:?}");
         assert_eq!(conflicts(&[&o, &h[0]], &[(0..o.len()).collect(), (0..h[0].len()).collect()]), vec![]);
@@ -259,24 +279,4 @@ mod tests {
         assert!(within(Point::new(106, 8), a, b, 10)); // 6² + 8² = 100
         assert!(!within(Point::new(107, 8), a, b, 10));
     }
-}
-
-/// Whether `p` lies strictly inside the ring (winding number, exact).
-pub fn strictly_inside(ring: &[Point], p: Point) -> bool {
-    let n = ring.len();
-    let mut wn = 0i32;
-    for i in 0..n {
-        let (a, b) = (ring[i], ring[(i + 1) % n]);
-        if echoloc::geometry::point_on_segment(p, a, b) {
-            return false;
-        }
-        if a.y <= p.y {
-            if b.y > p.y && orient(a, b, p) > 0 {
-                wn += 1;
-            }
-        } else if b.y <= p.y && orient(a, b, p) < 0 {
-            wn -= 1;
-        }
-    }
-    wn != 0
 }
