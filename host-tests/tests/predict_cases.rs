@@ -43,7 +43,17 @@ fn map_of(walls: &[[Point; 2]], solids: &[&[Point]]) -> Box<M> {
 }
 
 fn run(m: &M, k: &impl Credence) -> Option<Prediction> {
-    let prm = params();
+    run_with(m, k, params())
+}
+
+/// With the window's δ_max (signature test 2) opened up to 45°.
+fn run_wide(m: &M, k: &impl Credence) -> Option<Prediction> {
+    let mut prm = params();
+    prm.window.delta_max_deg = 45.0;
+    run_with(m, k, prm)
+}
+
+fn run_with(m: &M, k: &impl Credence, prm: PredictParams) -> Option<Prediction> {
     let w = Window::place(&prm.window, p(0, 0), 0.0).unwrap();
     let (a, _) = predict(m, &w, &prm, k).unwrap();
     // Both collection strategies must agree on these maps.
@@ -117,7 +127,10 @@ impl Credence for FarOnly {
 #[test]
 fn subsurface_search_finds_the_first_credible_point() {
     let m = map_of(&[[p(2000, -3000), p(2000, 3000)]], &[]);
-    let r = run(&m, &FarOnly).unwrap();
+    // δ reaches 30° there: beyond the window's δ_max of 15° nothing is searched...
+    assert_eq!(run(&m, &FarOnly), None);
+    // ...so open it up to see the search walk.
+    let r = run_wide(&m, &FarOnly).unwrap();
     // 50 mm steps from the foot: y = 1100 gives R = 2282.5, y = 1150 the
     // first R ≥ 2300: √(2000² + 1150²) = 2307.06.
     assert_eq!(r.range_mm, 2307);
@@ -188,6 +201,6 @@ fn r_min_cuts_out_the_near_part() {
     let m = map_of(&[[p(450, -3000), p(450, 3000)]], &[]);
     assert_eq!(run(&m, &CRISP), None);
     let wide = Crisp { half_angle_mdeg: 30_100, delta_max_mdeg: 45_000 };
-    let r = run(&m, &wide).unwrap();
+    let r = run_wide(&m, &wide).unwrap();
     assert!(r.range_mm == 500 || r.range_mm == 501, "{}", r.range_mm);
 }

@@ -50,7 +50,7 @@ use crate::map::{Layer, Map};
 use crate::window::{collect_beacons, CollectError, CollectStats, Strategy, Window, WindowError, WindowParams};
 
 /// Most beacons one window may hold.
-pub const MAX_BEACONS: usize = 64;
+pub const MAX_BEACONS: usize = 256;
 /// Most κ evaluations along one direction of one edge.
 pub const MAX_SUBSURFACE_STEPS: u32 = 128;
 
@@ -63,6 +63,7 @@ pub struct PredictParams {
     /// How beacons are collected.
     pub strategy: Strategy,
     /// τ_κ: the least credence of a prediction.
+    #[cfg_attr(feature = "defmt", defmt(Debug2Format))]
     pub tau_kappa: Kappa,
     /// Subsurface search increment along an edge, mm.
     pub step_mm: u32,
@@ -108,6 +109,7 @@ pub struct Prediction {
     /// Range to the echo point, mm.
     pub range_mm: u32,
     /// Its credence.
+    #[cfg_attr(feature = "defmt", defmt(Debug2Format))]
     pub kappa: Kappa,
     /// Angle of the echo point off the transducer axis, millidegrees (counter-clockwise positive).
     pub theta_mdeg: i32,

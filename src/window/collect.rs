@@ -57,11 +57,11 @@ impl Window {
         params.validate()?;
         let sector =
             Sector::new(apex, heading_rad, params.half_angle_deg.to_radians(), params.r_min_mm, params.r_max_mm)?;
+        let layout = params.layout()?;
         let mut paths = Vec::new();
-        for k in 0..params.n_pp()? {
-            let (x, y) = params.endpoint(k)?;
-            // n_pp() ≤ MAX_PSEUDO_PATHS, checked above.
-            let _ = paths.push(sector.to_map(x, y));
+        for k in 0..layout.n_pp {
+            // n_pp ≤ MAX_PSEUDO_PATHS, checked by layout().
+            let _ = paths.push(sector.to_map(layout.endpoint_x(k), params.r_max_mm as f32));
         }
         Ok(Self { sector, paths, params: *params })
     }

@@ -35,5 +35,5 @@ mod params;
 mod sector;
 
 pub use collect::{collect_beacons, CollectError, CollectStats, Strategy, Window};
-pub use params::{WindowError, WindowParams, MAX_PSEUDO_PATHS, MAX_RANGE_MM};
+pub use params::{PathLayout, WindowError, WindowParams, MAX_PSEUDO_PATHS, MAX_RANGE_MM};
 pub use sector::Sector;

@@ -22,6 +22,33 @@ pub enum WindowError {
     TooManyPseudoPaths(u32),
 }
 
+/// The pseudo-path layout of a window: eq. (2), (4), (5)–(6).
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct PathLayout {
+    /// `N_pp`.
+    pub n_pp: u32,
+    /// `w`, mm.
+    pub w_mm: f32,
+    /// `w_min`, mm.
+    pub w_min_mm: f32,
+    /// `R_max tan θ_o`, mm.
+    pub half_span_mm: f32,
+    /// Whether the map is buffered (`t_b > 0`).
+    pub buffered: bool,
+}
+
+impl PathLayout {
+    /// The lateral coordinate of path `k`'s end point (`0 ≤ k < N_pp`), mm:
+    /// unbuffered `R tan θ_o − k·w` (both cone edges included), buffered
+    /// `R tan θ_o − (k+1)·w` (interior paths). Every end point lies at
+    /// `y = R_max`.
+    pub fn endpoint_x(&self, k: u32) -> f32 {
+        let n = if self.buffered { (k + 1) as f32 } else { k as f32 };
+        self.half_span_mm - n * self.w_mm
+    }
+}
+
 /// A sonar's window and the map's smallest detectable surface.
 ///
 /// ```
@@ -96,34 +123,39 @@ impl WindowParams {
         2.0 * self.r_max_mm as f32 * libm::tanf(self.half_angle_deg.to_radians())
     }
 
-    /// Eq. (2): `N_pp = ⌈2 R_max tan θ_o / w_min⌉ + I_b`. When a buffered
-    /// window would get no path at all (`⌈…⌉ = 1`), one path, the axis, is
-    /// kept: a window must search somewhere (our erratum).
-    pub fn n_pp(&self) -> Result<u32, WindowError> {
+    /// The pseudo-path layout, computed once: eq. (2), (4) and what (5)–(6) need.
+    pub fn layout(&self) -> Result<PathLayout, WindowError> {
         self.validate()?;
-        let q = libm::ceilf(self.span_mm() / self.w_min_mm()) as i64;
+        let span = self.span_mm();
+        let w_min = self.w_min_mm();
+        let q = libm::ceilf(span / w_min) as i64;
+        // A buffered window with ⌈…⌉ = 1 would get no path: keep one, the axis.
         let n = (q + self.i_b() as i64).max(1);
         if n > MAX_PSEUDO_PATHS as i64 {
             return Err(WindowError::TooManyPseudoPaths(n.min(u32::MAX as i64) as u32));
         }
-        Ok(n as u32)
+        let w = span / (n as i32 - self.i_b()).max(1) as f32;
+        Ok(PathLayout { n_pp: n as u32, w_mm: w, w_min_mm: w_min, half_span_mm: span / 2.0, buffered: self.tb_mm > 0 })
+    }
+
+    /// Eq. (2): `N_pp = ⌈2 R_max tan θ_o / w_min⌉ + I_b`. When a buffered
+    /// window would get no path at all (`⌈…⌉ = 1`), one path, the axis, is
+    /// kept: a window must search somewhere (our erratum).
+    pub fn n_pp(&self) -> Result<u32, WindowError> {
+        Ok(self.layout()?.n_pp)
     }
 
     /// Eq. (4) without the misprinted ceiling: `w = 2 R_max tan θ_o / (N_pp − I_b)`, mm.
     pub fn w_mm(&self) -> Result<f32, WindowError> {
-        let n = self.n_pp()? as i32;
-        Ok(self.span_mm() / (n - self.i_b()).max(1) as f32)
+        Ok(self.layout()?.w_mm)
     }
 
     /// Eq. (5)–(6) as DESIGN reads them: the end point of pseudo-path `k`
-    /// (`0 ≤ k < N_pp`) in the sensor frame (x lateral, y along the normal),
-    /// mm. Unbuffered: `x = R tan θ_o − k·w` (both cone edges included);
-    /// buffered: `x = R tan θ_o − (k+1)·w` (interior paths). All at `y = R_max`.
+    /// in the sensor frame (x lateral, y along the normal), mm; see
+    /// [`PathLayout::endpoint_x`].
     pub fn endpoint(&self, k: u32) -> Result<(f32, f32), WindowError> {
-        let w = self.w_mm()?;
-        let half = self.span_mm() / 2.0;
-        let n = if self.tb_mm == 0 { k as f32 } else { (k + 1) as f32 };
-        Ok((half - n * w, self.r_max_mm as f32))
+        let l = self.layout()?;
+        Ok((l.endpoint_x(k), self.r_max_mm as f32))
     }
 
     /// Whether the pseudo-path strategy is guaranteed to collect every piece

@@ -56,6 +56,8 @@ pub struct Sector {
     axis: (i64, i64),
     left: (i64, i64),
     right: (i64, i64),
+    /// cos and sin of the heading, computed once.
+    unit: (f32, f32),
 }
 
 fn dir(angle: f32) -> (i64, i64) {
@@ -92,6 +94,7 @@ impl Sector {
             axis: dir(heading_rad),
             left: dir(heading_rad + half_angle_rad),
             right: dir(heading_rad - half_angle_rad),
+            unit: (libm::cosf(heading_rad), libm::sinf(heading_rad)),
         })
     }
 
@@ -134,13 +137,13 @@ impl Sector {
     /// normal)`, rounded to the millimetre. Lateral `x` points to the right
     /// of the heading.
     pub fn to_map(&self, x: f32, y: f32) -> Point {
-        let (c, s) = (libm::cosf(self.heading_rad), libm::sinf(self.heading_rad));
+        let (c, s) = self.unit;
         Point::new(self.apex.x + libm::roundf(x * s + y * c) as i32, self.apex.y + libm::roundf(-x * c + y * s) as i32)
     }
 
     /// The unit vector of the axis (map frame).
     pub fn axis_unit(&self) -> (f32, f32) {
-        (libm::cosf(self.heading_rad), libm::sinf(self.heading_rad))
+        self.unit
     }
 
     /// Clips edge `a → b` to the wedge (not yet to the ranges).
@@ -229,6 +232,10 @@ impl Sector {
     /// that interval meets `[R_min, R_max]`. Its extremes lie on the piece's
     /// edges clipped to the wedge (or at the apex, when the apex is inside).
     pub fn meets(&self, piece: Convex<'_>) -> bool {
+        // Fast accept: a vertex in the sector (cheap i64 tests).
+        if piece.vertices().iter().any(|&v| self.contains(v)) {
+            return true;
+        }
         let apex_inside = piece.tvector(self.apex).is_inside();
         let (mut near, mut far) = (apex_inside, false);
         for i in 0..piece.edge_count() {
