@@ -1,7 +1,7 @@
 //! `echoloc-lab synth` and `echoloc-lab train` end to end: synthesis is
 //! deterministic for a seed and matches the checked-in data, bad CSVs fail
-//! naming file, line and field, and a short training run reports and writes
-//! the weights' source.
+//! naming file, line and field, a short training run reports and writes
+//! the weights' source, and a failing command writes nothing.
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
@@ -133,4 +133,50 @@ fn short_training_reports_leave_one_day_out_and_writes_weights_and_figures() {
         let bytes = std::fs::read(out.join(png)).unwrap();
         assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n", "{png}");
     }
+}
+
+/// The names in `dir`, sorted.
+fn listing(dir: &Path) -> Vec<String> {
+    let mut v: Vec<String> =
+        std::fs::read_dir(dir).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
+    v.sort();
+    v
+}
+
+#[test]
+fn a_failing_train_leaves_the_weights_untouched() {
+    // The figures directory cannot be created (a file is in the way): the
+    // weights, rendered before the figures, must not be written either.
+    let out = tmp("all-or-nothing-train");
+    let weights = out.join("weights.rs");
+    std::fs::write(&weights, "// the previous weights\n").unwrap();
+    let blocker = out.join("figures");
+    std::fs::write(&blocker, "not a directory").unwrap();
+    let o = lab()
+        .arg("train")
+        .arg(root().join("docs/credence-data"))
+        .args(["--epochs", "5", "--restarts", "1", "--no-cv", "--weights-out"])
+        .arg(&weights)
+        .arg("--figures")
+        .arg(blocker.join("sub"))
+        .output()
+        .unwrap();
+    assert!(!o.status.success(), "should fail");
+    assert!(o.stdout.is_empty(), "no report on failure");
+    assert!(String::from_utf8_lossy(&o.stderr).contains(blocker.to_str().unwrap()), "names the directory");
+    assert_eq!(std::fs::read_to_string(&weights).unwrap(), "// the previous weights\n");
+    assert_eq!(listing(&out), ["figures", "weights.rs"], "no temporary file left");
+}
+
+#[test]
+fn a_failing_synth_writes_no_day() {
+    // day3.csv cannot be written (a directory is in the way): days 1, 2, 4
+    // and 5 must not be written either.
+    let out = tmp("all-or-nothing-synth");
+    std::fs::create_dir(out.join("day3.csv")).unwrap();
+    let o = lab().args(["synth", "--out"]).arg(&out).output().unwrap();
+    assert!(!o.status.success(), "should fail");
+    assert!(o.stdout.is_empty(), "no report on failure");
+    assert!(String::from_utf8_lossy(&o.stderr).contains("day3.csv"), "names the file");
+    assert_eq!(listing(&out), ["day3.csv"], "nothing written, no temporary file left");
 }

@@ -8,6 +8,9 @@
 //!   and the single-lobe Gaussian baseline leave-one-day-out, trains the net
 //!   on every day, quantises it, and writes the core's `weights.rs` and the
 //!   figures. Progress goes to stderr; the report is JSON on stdout.
+//!
+//! Both write all or nothing: every output is rendered in memory, and files
+//! are written only when the whole command has succeeded ([`Outputs`]).
 
 pub mod data;
 pub mod error;
@@ -72,14 +75,14 @@ pub struct TrainArgs {
     pub no_cv: bool,
 }
 
-/// Runs `synth`; returns the JSON summary.
+/// Runs `synth`; returns the JSON summary. All or nothing: every file is
+/// rendered first and written by [`Outputs::commit`].
 pub fn synth_cmd(a: &SynthArgs) -> Result<String, CredenceError> {
     let grid = synth::Grid { readings: a.readings, ..synth::PAPER_GRID };
-    std::fs::create_dir_all(&a.out).map_err(|e| CredenceError::io(&a.out, e))?;
+    let mut out = Outputs::default();
     let mut files = Vec::new();
     for (day, nodes) in synth::run(a.seed, a.days as usize, &grid) {
         let path = a.out.join(format!("{}.csv", day.name));
-        write_atomically(&path, data::to_csv(&nodes).as_bytes())?;
         let mean = nodes.iter().map(|n| f64::from(n.correct) / f64::from(n.readings)).sum::<f64>() / nodes.len() as f64;
         files.push(json!({
             "path": path.display().to_string(),
@@ -94,7 +97,9 @@ pub fn synth_cmd(a: &SynthArgs) -> Result<String, CredenceError> {
             "false_echo_rate_per_s": round(day.false_echo_rate_per_s, 3),
             "mean_kappa": round(mean, 4),
         }));
+        out.add(path, data::to_csv(&nodes).into_bytes());
     }
+    out.commit()?;
     Ok(json!({ "seed": a.seed, "readings_per_node": a.readings, "files": files }).to_string())
 }
 
@@ -103,10 +108,68 @@ fn round(v: f64, digits: i32) -> f64 {
     (v * p).round() / p
 }
 
-fn write_atomically(path: &Path, bytes: &[u8]) -> Result<(), CredenceError> {
-    let tmp = path.with_extension("tmp-echoloc");
-    std::fs::write(&tmp, bytes).map_err(|e| CredenceError::io(path, e))?;
-    std::fs::rename(&tmp, path).map_err(|e| CredenceError::io(path, e))
+/// A command's output files, rendered in memory and written all or nothing.
+#[derive(Default)]
+struct Outputs {
+    files: Vec<(PathBuf, Vec<u8>)>,
+}
+
+impl Outputs {
+    fn add(&mut self, path: PathBuf, bytes: Vec<u8>) {
+        self.files.push((path, bytes));
+    }
+
+    /// Writes every file to a temporary file beside it (creating missing
+    /// directories), and only when all of them are written renames each into
+    /// place. An error before the renames — a directory that cannot be
+    /// created, a full disk, a target that is a directory — removes the
+    /// temporary files and leaves every target as it was (an empty directory
+    /// it created may remain). The renames are the only step that touches a
+    /// target; each is atomic on one file system.
+    fn commit(self) -> Result<(), CredenceError> {
+        let mut staged: Vec<(PathBuf, &Path)> = Vec::new();
+        let result = self.files.iter().try_for_each(|(path, bytes)| {
+            let tmp = temporary_beside(path);
+            stage(path, &tmp, bytes).inspect_err(|_| {
+                let _ = std::fs::remove_file(&tmp);
+            })?;
+            staged.push((tmp, path));
+            Ok(())
+        });
+        if let Err(e) = result {
+            for (tmp, _) in &staged {
+                let _ = std::fs::remove_file(tmp);
+            }
+            return Err(e);
+        }
+        for (i, (tmp, path)) in staged.iter().enumerate() {
+            if let Err(e) = std::fs::rename(tmp, path) {
+                for (tmp, _) in &staged[i..] {
+                    let _ = std::fs::remove_file(tmp);
+                }
+                return Err(CredenceError::io(path, e));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// `dir/.name.<pid>.tmp` for `dir/name`: the same directory, so the rename
+/// stays on one file system.
+fn temporary_beside(path: &Path) -> PathBuf {
+    let name = path.file_name().map_or_else(|| "out".into(), |n| n.to_string_lossy().into_owned());
+    path.with_file_name(format!(".{name}.{}.tmp", std::process::id()))
+}
+
+fn stage(path: &Path, tmp: &Path, bytes: &[u8]) -> Result<(), CredenceError> {
+    let io = |e| CredenceError::io(path, e);
+    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).map_err(|e| CredenceError::io(dir, e))?;
+    }
+    if path.is_dir() {
+        return Err(io(std::io::Error::other("is a directory; expected a file to write")));
+    }
+    std::fs::write(tmp, bytes).map_err(io)
 }
 
 /// Progress on stderr, at most every two seconds, for long trainings.
@@ -264,6 +327,8 @@ pub fn train_cmd(a: &TrainArgs) -> Result<String, CredenceError> {
         )));
     }
 
+    // Weights and figures: rendered first, written all or nothing at the end.
+    let mut outputs = Outputs::default();
     if let Some(out) = &a.weights_out {
         let args: Vec<String> = std::env::args().skip(1).collect();
         let prov = quantise::Provenance {
@@ -278,12 +343,11 @@ pub fn train_cmd(a: &TrainArgs) -> Result<String, CredenceError> {
             train_rmse: train::rmse(&net, &all),
             max_quant_error: max_err,
         };
-        write_atomically(out, quantise::weights_source(&prov, &float, &quant).as_bytes())?;
+        outputs.add(out.clone(), quantise::weights_source(&prov, &float, &quant).into_bytes());
         report.insert("weights_out".into(), json!(out.display().to_string()));
     }
 
     if let Some(dir) = &a.figures {
-        std::fs::create_dir_all(dir).map_err(|e| CredenceError::io(dir, e))?;
         let observed = |r: f64, t: f64| nearest(&all, r, t);
         let netf = |r: f64, t: f64| Some(fw_model.eval(r, t));
         let gaussf = |r: f64, t: f64| Some(gauss.eval(r, t));
@@ -295,12 +359,11 @@ pub fn train_cmd(a: &TrainArgs) -> Result<String, CredenceError> {
             ("kappa_gaussian.png", "SINGLE-LOBE GAUSSIAN κ (FITTED)".to_string(), &gaussf),
         ] {
             let p = dir.join(file);
-            plot::surface_figure(&p, &title, f)?;
+            outputs.add(p.clone(), plot::surface_figure(&title, f).png(&p)?);
             written.push(p.display().to_string());
         }
         let p = dir.join("kappa_profiles.png");
-        plot::profile_figure(
-            &p,
+        let profiles = plot::profile_figure(
             "κ AGAINST θ: OBSERVED (DOTS), NET, GAUSSIAN",
             &[1000, 2500, 4000],
             &[
@@ -308,10 +371,12 @@ pub fn train_cmd(a: &TrainArgs) -> Result<String, CredenceError> {
                 plot::Series { label: "NET (FIRMWARE)", colour: [214, 39, 40], kappa: &netf, dots: false },
                 plot::Series { label: "GAUSSIAN", colour: [31, 119, 180], kappa: &gaussf, dots: false },
             ],
-        )?;
+        );
+        outputs.add(p.clone(), profiles.png(&p)?);
         written.push(p.display().to_string());
         report.insert("figures".into(), json!(written));
     }
+    outputs.commit()?;
     eprintln!("train: done in {:.0} s", now.elapsed().as_secs_f64());
     Ok(Value::Object(report).to_string())
 }

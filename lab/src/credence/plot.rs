@@ -68,17 +68,19 @@ impl Canvas {
         s.chars().count() as i64 * 6 * scale
     }
 
-    /// Writes the canvas as an 8-bit RGB PNG.
-    pub fn save(&self, path: &Path) -> Result<(), CredenceError> {
-        let io = |e: std::io::Error| CredenceError::io(path, e);
-        let file = std::fs::File::create(path).map_err(io)?;
-        let mut enc = png::Encoder::new(std::io::BufWriter::new(file), self.w as u32, self.h as u32);
+    /// The canvas as an 8-bit RGB PNG, in memory; `path` (where it is meant
+    /// to go) names the figure in an error.
+    pub fn png(&self, path: &Path) -> Result<Vec<u8>, CredenceError> {
+        let err = |e: png::EncodingError| CredenceError::io(path, std::io::Error::other(e));
+        let mut out = Vec::new();
+        let mut enc = png::Encoder::new(&mut out, self.w as u32, self.h as u32);
         enc.set_color(png::ColorType::Rgb);
         enc.set_depth(png::BitDepth::Eight);
         enc.set_compression(png::Compression::Best);
-        let mut wr = enc.write_header().map_err(|e| io(std::io::Error::other(e)))?;
-        wr.write_image_data(&self.px).map_err(|e| io(std::io::Error::other(e)))?;
-        wr.finish().map_err(|e| io(std::io::Error::other(e)))
+        let mut wr = enc.write_header().map_err(err)?;
+        wr.write_image_data(&self.px).map_err(err)?;
+        wr.finish().map_err(err)?;
+        Ok(out)
     }
 }
 
@@ -101,8 +103,8 @@ const T_HI: f64 = 45.0;
 
 /// One figure: the surface in (R, θ) on the left and in the sensor frame
 /// (x lateral, y along the axis, θ ∈ [−45°, 45°]) on the right, a colour bar.
-pub fn surface_figure(path: &Path, title: &str, kappa: Surface<'_>) -> Result<(), CredenceError> {
-    let (w, h) = (1180usize, 560usize);
+pub fn surface_figure(title: &str, kappa: Surface<'_>) -> Canvas {
+    let (w, h) = (1340usize, 560usize);
     let mut c = Canvas::new(w, h);
     c.text(30, 14, title, 3, BLACK);
     // Left panel: R across, θ up.
@@ -133,10 +135,11 @@ pub fn surface_figure(path: &Path, title: &str, kappa: Surface<'_>) -> Result<()
     c.text(lx - 80, ly - 30, "θ (DEG)", 2, BLACK);
     c.text(lx + 120, ly - 30, "(A) R-θ", 2, BLACK);
 
-    // Right panel: sensor frame, x ∈ [−4, 4] m, y ∈ [0, 5.6] m, equal scale.
-    let (rx, ry, rw, rh) = (620i64, 90i64, 400i64, 400i64);
-    let scale = 5600.0 / (rh - 1) as f64; // mm per pixel
-    let x0 = rx + rw / 2;
+    // Right panel: sensor frame, equal scale on both axes, wide enough for the
+    // whole cone: x ∈ ±R_HI·sin 45° (±3.89 m), y ∈ [0, R_HI], with a margin.
+    let (rx, ry, rw, rh) = (620i64, 90i64, 560i64, 400i64);
+    let scale = f64::max(8000.0 / (rw - 1) as f64, 5600.0 / (rh - 1) as f64); // mm per pixel
+    let x0 = rx + (rw - 1) / 2;
     for py in 0..rh {
         let ymm = (rh - 1 - py) as f64 * scale;
         for px in 0..rw {
@@ -151,8 +154,8 @@ pub fn surface_figure(path: &Path, title: &str, kappa: Surface<'_>) -> Result<()
         }
     }
     frame(&mut c, rx, ry, rw, rh);
-    for xm in -2i32..=2 {
-        let x = x0 + (f64::from(xm) * 1000.0 / scale) as i64;
+    for xm in -4i32..=4 {
+        let x = x0 + (f64::from(xm) * 1000.0 / scale).round() as i64;
         c.line((x, ry + rh), (x, ry + rh + 6), BLACK, 1);
         let s = xm.to_string();
         c.text(x - Canvas::text_width(&s, 2) / 2, ry + rh + 10, &s, 2, BLACK);
@@ -167,8 +170,8 @@ pub fn surface_figure(path: &Path, title: &str, kappa: Surface<'_>) -> Result<()
     c.text(rx - 40, ry - 30, "YS (M)", 2, BLACK);
     c.text(rx + 120, ry - 30, "(B) SENSOR FRAME", 2, BLACK);
 
-    colour_bar(&mut c, 1080, 90, 24, 400);
-    c.save(path)
+    colour_bar(&mut c, 1230, 90, 24, 400);
+    c
 }
 
 fn frame(c: &mut Canvas, x: i64, y: i64, w: i64, h: i64) {
@@ -206,14 +209,14 @@ pub struct Series<'a> {
 }
 
 /// κ against θ at a few ranges, one panel per range.
-pub fn profile_figure(path: &Path, title: &str, ranges_mm: &[u32], series: &[Series<'_>]) -> Result<(), CredenceError> {
+pub fn profile_figure(title: &str, ranges_mm: &[u32], series: &[Series<'_>]) -> Canvas {
     let (pw, ph) = (340i64, 300i64);
-    let w = 60 + ranges_mm.len() as i64 * (pw + 60);
+    let w = 60 + ranges_mm.len() as i64 * (pw + 90);
     let h = 500i64;
     let mut c = Canvas::new(w as usize, h as usize);
     c.text(30, 14, title, 3, BLACK);
     for (i, &r) in ranges_mm.iter().enumerate() {
-        let (px, py) = (70 + i as i64 * (pw + 60), 80i64);
+        let (px, py) = (70 + i as i64 * (pw + 90), 80i64);
         for k in 0..=4 {
             let y = py + ph - 1 - (f64::from(k) / 4.0 * (ph - 1) as f64) as i64;
             c.line((px, y), (px + pw, y), GREY, 1);
@@ -261,7 +264,7 @@ pub fn profile_figure(path: &Path, title: &str, ranges_mm: &[u32], series: &[Ser
         c.rect(lx, h - 40, 24, 12, s.colour);
         lx += 32 + c.text(lx + 32, h - 43, s.label, 2, BLACK) + 30;
     }
-    c.save(path)
+    c
 }
 
 /// A 5×7 glyph, one byte per row, bit 4 the leftmost dot. Lower case is
@@ -336,5 +339,31 @@ mod tests {
         assert_eq!(viridis(2.0), viridis(1.0));
         assert_eq!(glyph('1'), [4, 12, 4, 4, 4, 4, 14]);
         assert_eq!(glyph('a'), glyph('A'));
+    }
+
+    #[test]
+    fn the_sensor_frame_shows_the_whole_cone() {
+        // A constant surface: the sensor-frame panel must show the full
+        // annular sector 0.5…5.5 m × ±45°, (π/4)·(5.5² − 0.5²) m², unclipped.
+        let c = surface_figure("T", &|_, _| Some(0.5));
+        let colour = viridis(0.5);
+        let mut n = 0usize;
+        let (mut x_lo, mut x_hi, mut y_lo) = (usize::MAX, 0, usize::MAX);
+        for y in 0..c.h {
+            for x in 560..1200 {
+                let i = (y * c.w + x) * 3;
+                if c.px[i..i + 3] == colour {
+                    n += 1;
+                    (x_lo, x_hi, y_lo) = (x_lo.min(x), x_hi.max(x), y_lo.min(y));
+                }
+            }
+        }
+        let scale = 8000.0 / 559.0; // mm per pixel, as drawn
+        let area = std::f64::consts::FRAC_PI_4 * (5500.0f64.powi(2) - 500.0f64.powi(2)) / (scale * scale);
+        assert!((n as f64 / area - 1.0).abs() < 0.01, "{n} pixels, {area:.0} expected");
+        // Neither side touches the panel's frame (x 620…1179), nor the top (y 90).
+        let half = (3889.0 / scale) as usize;
+        assert!(x_lo > 620 && x_hi < 1179 && x_hi - x_lo >= 2 * half, "{x_lo}…{x_hi}");
+        assert!(y_lo > 90, "{y_lo}");
     }
 }

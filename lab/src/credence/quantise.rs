@@ -108,7 +108,7 @@ pub fn weights_source(p: &Provenance, float: &FloatWeights, quant: &QuantWeights
         let _ = writeln!(w, "//! - `{f}`: {n} readings, CRC-32 `{crc:08x}`");
     }
     let _ = writeln!(w, "//!");
-    let _ = writeln!(w, "//! RMSE of the float net on the pooled data: {:.4}.", p.train_rmse);
+    let _ = writeln!(w, "//! RMSE of the float net on the pooled data: {:.6}.", p.train_rmse);
     let _ = writeln!(
         w,
         "//! Max |quantised − float| over the 0.5° × 10 mm grid of the domain: {:.6} (bound 1/256 = 0.003906).",
