@@ -1,7 +1,10 @@
 //! The firmware's quantised credence net (`echoloc::credence::net`) against
 //! (1) an integer reference written here from the documented algorithm,
 //! bit for bit, and (2) the float net it was rounded from, within 1/256, over
-//! the dense grid 0.5° × 10 mm of the whole input domain (DESIGN §4.4).
+//! the dense grid 0.5° × 10 mm of the whole input domain (DESIGN §4.4), and
+//! (3) the data it was trained on: the generated `weights.rs` names each
+//! data file's CRC-32 and the float net's RMSE on them, both checked here
+//! against `docs/credence-data`.
 
 use echoloc::credence::net::{CredenceNet, QuantWeights, FLOAT_WEIGHTS, HIDDEN, SHIPPED_WEIGHTS, SIGMOID_TAIL};
 use echoloc::credence::{Credence, EchoGeometry, Kappa};
@@ -186,4 +189,74 @@ fn the_shipped_net_has_the_three_lobes() {
     assert!(k(r, 45.0) < 0.1, "45° {}", k(r, 45.0));
     // The side lobes fade with range faster than the main lobe.
     assert!(k(5500, 17.5) < k(1000, 17.5) - 0.3 && k(5500, 0.0) > 0.6);
+}
+
+/// The generated weights file, as compiled into `FLOAT_WEIGHTS`.
+const WEIGHTS_SOURCE: &str = include_str!("../../src/credence/weights.rs");
+
+/// The text between the first pair of backticks after `key` in `line`.
+fn quoted_after<'a>(line: &'a str, key: &str) -> Option<&'a str> {
+    let rest = &line[line.find(key)? + key.len()..];
+    let rest = &rest[rest.find('`')? + 1..];
+    Some(&rest[..rest.find('`')?])
+}
+
+#[test]
+fn the_weights_header_matches_the_checked_in_data() {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+    // `//! - `docs/credence-data/day1.csv`: 39900 readings, CRC-32 `3bae1577``
+    let files: Vec<(&str, u64, u32)> = WEIGHTS_SOURCE
+        .lines()
+        .filter_map(|l| l.strip_prefix("//! - `"))
+        .map(|l| {
+            let path = &l[..l.find('`').expect("closing backtick")];
+            let readings = l.split(": ").nth(1).and_then(|r| r.split(' ').next()).and_then(|r| r.parse().ok());
+            let crc = quoted_after(l, "CRC-32").and_then(|c| u32::from_str_radix(c, 16).ok());
+            (path, readings.expect("readings"), crc.expect("CRC-32"))
+        })
+        .collect();
+    let rmse_line =
+        WEIGHTS_SOURCE.lines().find_map(|l| l.strip_prefix("//! RMSE of the float net on the pooled data: "));
+    let header_rmse: f64 = rmse_line.and_then(|r| r.trim_end_matches('.').parse().ok()).expect("RMSE line");
+
+    // Every checked-in day is listed, and nothing else.
+    let mut on_disk: Vec<String> = std::fs::read_dir(root.join("docs/credence-data"))
+        .unwrap()
+        .map(|e| format!("docs/credence-data/{}", e.unwrap().file_name().to_string_lossy()))
+        .filter(|p| p.ends_with(".csv"))
+        .collect();
+    on_disk.sort();
+    assert_eq!(files.iter().map(|f| f.0).collect::<Vec<_>>(), on_disk, "weights.rs was trained on other files");
+
+    // Pool the days per node (R, |θ|): κ = Σ correct / Σ readings.
+    let mut pooled = std::collections::BTreeMap::<(u32, u64), (u64, u64)>::new();
+    for &(path, readings, crc) in &files {
+        let bytes = std::fs::read(root.join(path)).unwrap();
+        assert_eq!(
+            crc32fast::hash(&bytes),
+            crc,
+            "{path} changed since weights.rs was generated: retrain (docs/credence.md, Exact commands)"
+        );
+        let text = std::str::from_utf8(&bytes).unwrap();
+        let mut total = 0;
+        for line in text.lines().skip(1).filter(|l| !l.is_empty()) {
+            let f: Vec<&str> = line.split(',').collect();
+            let (r, t): (u32, f64) = (f[0].parse().unwrap(), f[1].parse().unwrap());
+            let (n, c): (u64, u64) = (f[2].parse().unwrap(), f[3].parse().unwrap());
+            let e = pooled.entry((r, t.abs().to_bits())).or_default();
+            e.0 += c;
+            e.1 += n;
+            total += n;
+        }
+        assert_eq!(total, readings, "{path}: readings");
+    }
+    assert_eq!(pooled.len(), 399, "the paper's grid");
+    let sq: f64 = pooled
+        .iter()
+        .map(|(&(r, t), &(c, n))| (kappa_float(f64::from(r), f64::from_bits(t)) - c as f64 / n as f64).powi(2))
+        .sum();
+    let rmse = (sq / pooled.len() as f64).sqrt();
+    println!("pooled RMSE of FLOAT_WEIGHTS: {rmse:.6} (header {header_rmse})");
+    // The header prints six decimals.
+    assert!((rmse - header_rmse).abs() < 2e-6, "pooled RMSE {rmse} vs header {header_rmse}");
 }

@@ -278,6 +278,11 @@ pub fn run_day(day: &Day, grid: &Grid, rng: &mut Rng) -> Vec<Node> {
         .collect()
 }
 
+/// The generator of day `index` (from 0) of the experiment seeded `seed`.
+pub fn day_rng(seed: u64, index: usize) -> Rng {
+    Rng::substream(seed, index as u64 + 1)
+}
+
 /// The whole experiment: `days` data sets, deterministic for `seed`.
 pub fn run(seed: u64, days: usize, grid: &Grid) -> Vec<(Day, Vec<Node>)> {
     let mut rng = Rng::new(seed);
@@ -286,9 +291,9 @@ pub fn run(seed: u64, days: usize, grid: &Grid) -> Vec<(Day, Vec<Node>)> {
         .into_iter()
         .enumerate()
         .map(|(i, day)| {
-            // Each day its own stream, so adding days leaves earlier ones alone.
-            let mut day_rng = Rng::new(seed ^ (0x9E37_79B9_7F4A_7C15u64.wrapping_mul(i as u64 + 1)));
-            let nodes = run_day(&day, grid, &mut day_rng);
+            // Each day its own stream, independent of the conditions' stream
+            // and of the other days', so adding days leaves earlier ones alone.
+            let nodes = run_day(&day, grid, &mut day_rng(seed, i));
             (day, nodes)
         })
         .collect()
@@ -330,5 +335,26 @@ mod tests {
         let lobe = two_way_directivity(ka, 17.2f64.to_radians());
         assert!(null > 0.0 && null < lobe / 10.0, "{null} {lobe}");
         assert!((two_way_directivity(ka, 0.0) - 1.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn days_draw_from_streams_disjoint_from_each_other_and_the_conditions() {
+        // With the former seeding (`seed ^ γ·(day + 1)`), seeds 0 and 1 gave
+        // days whose draws were the conditions' stream a few draws on.
+        for seed in [0u64, 1] {
+            let mut seen = std::collections::HashSet::new();
+            let streams = std::iter::once(Rng::new(seed)).chain((0..5).map(|i| day_rng(seed, i)));
+            for (k, mut r) in streams.enumerate() {
+                for n in 0..50_000 {
+                    let v = r.next_u64();
+                    assert!(seen.insert(v), "seed {seed}: stream {k} draw {n} repeats an earlier stream's");
+                }
+            }
+        }
+        // Adding days leaves the earlier ones alone; the days differ.
+        let grid = Grid { r_mm: (500, 1500, 250), theta_decideg: (100, 25), readings: 20 };
+        let three = run(0, 3, &grid);
+        assert_eq!(run(0, 2, &grid)[..], three[..2]);
+        assert!(three[0].1 != three[1].1 && three[1].1 != three[2].1);
     }
 }
