@@ -7,8 +7,13 @@
 //! sweep without the net, and prints ticks and instructions per call; the
 //! instructions per tick come from a calibration loop of known length, as in
 //! the board's main firmware. Checks a few κ values on the way (the axis,
-//! the first null and side lobe) and exits through semihosting: 0 when every
-//! check passed, 1 otherwise; a HardFault or panic exits with 1 too.
+//! the first null and side lobe), then measures the stack one evaluation
+//! uses: the free stack below `main`'s frame is painted again (cortex-m-rt's
+//! `paint-stack` painted it before `main`, but the printing since has used
+//! it), one κ is evaluated for each point of the sweep through a call that
+//! is never inlined, and the deepest word overwritten gives the bytes below
+//! the caller's stack pointer. Exits through semihosting: 0 when every check
+//! passed, 1 otherwise; a HardFault or panic exits with 1 too.
 //!
 //! `cargo run -p qemu-mps2-an386 --bin kappa_cost --target thumbv7em-none-eabihf --release`
 #![no_std]
@@ -87,7 +92,101 @@ fn main() -> ! {
         net_ticks * per_tick / N,
         sum
     );
+
+    // Stack: the deepest use so far (the printing, mostly), then repaint below
+    // this frame, evaluate the sweep again and find the deepest word written.
+    let (used, size) = stack_high_water();
+    let sp = paint_free_stack();
+    let mut again = 0u32;
+    for i in 0..N {
+        again = again.wrapping_add(u32::from(kappa_call(&net, &black_box(sweep(i))).to_bits()));
+    }
+    let kappa_stack = stack_used_below(sp);
+    if again != sum || kappa_stack == 0 {
+        hprintln!("FAIL: stack sweep checksum {} (expected {}), {} bytes measured", again, sum, kappa_stack);
+        ok = false;
+    }
+    hprintln!(
+        "stack: {} bytes per kappa call, below main's frame of {}; high-water mark before: {} of {} bytes",
+        kappa_stack,
+        stack_top() - sp,
+        used,
+        size
+    );
     exit(ok);
+}
+
+/// One κ through a call that is never inlined, so that its frame lies below
+/// the caller's stack pointer.
+#[inline(never)]
+fn kappa_call(net: &CredenceNet<'_>, e: &EchoGeometry) -> Kappa {
+    black_box(net).kappa(e)
+}
+
+extern "C" {
+    /// The top of the stack (cortex-m-rt's linker script).
+    static _stack_start: u32;
+    /// The bottom of the stack (cortex-m-rt's linker script).
+    static _stack_end: u32;
+}
+
+/// Paints the free stack, from its bottom up to the current stack pointer,
+/// with cortex-m-rt's paint value; returns the stack pointer. Inlined into the
+/// caller, so that no frame of its own lies below the pointer it reads.
+#[inline(always)]
+fn paint_free_stack() -> usize {
+    let sp = cortex_m::register::msp::read() as usize;
+    // SAFETY: only the symbol's address is taken; the words from the stack's
+    // bottom up to the stack pointer are free (no interrupt is enabled), and
+    // nothing below the pointer is live.
+    #[allow(unsafe_code)]
+    unsafe {
+        let mut p = core::ptr::addr_of!(_stack_end) as usize;
+        while p < sp {
+            core::ptr::write_volatile(p as *mut u32, cortex_m_rt::STACK_PAINT_VALUE);
+            p += 4;
+        }
+    }
+    sp
+}
+
+/// Bytes below `sp` overwritten since [`paint_free_stack`] returned `sp`.
+/// Inlined, so that its own frame does not count.
+#[inline(always)]
+fn stack_used_below(sp: usize) -> usize {
+    // SAFETY: as in `stack_high_water`: painted RAM, read with volatile reads.
+    #[allow(unsafe_code)]
+    unsafe {
+        let mut p = core::ptr::addr_of!(_stack_end) as usize;
+        while p < sp && core::ptr::read_volatile(p as *const u32) == cortex_m_rt::STACK_PAINT_VALUE {
+            p += 4;
+        }
+        sp - p
+    }
+}
+
+/// The top of the stack (its initial pointer).
+fn stack_top() -> usize {
+    // Only the symbol's address is taken: no unsafe needed.
+    core::ptr::addr_of!(_stack_start) as usize
+}
+
+/// Bytes of stack ever used, as the board's main firmware reports it:
+/// cortex-m-rt painted `_stack_end.._stack_start` with `0xCCCC_CCCC` before
+/// `main`; the lowest overwritten word marks the deepest use.
+fn stack_high_water() -> (usize, usize) {
+    // SAFETY: only the symbols' addresses are taken; the words between them
+    // are plain RAM that cortex-m-rt painted, read with volatile reads.
+    #[allow(unsafe_code)]
+    unsafe {
+        let top = core::ptr::addr_of!(_stack_start) as usize;
+        let bottom = core::ptr::addr_of!(_stack_end) as usize;
+        let mut p = bottom;
+        while p < top && core::ptr::read_volatile(p as *const u32) == cortex_m_rt::STACK_PAINT_VALUE {
+            p += 4;
+        }
+        (top - p, top - bottom)
+    }
 }
 
 /// The i-th point of a 16 × 16 sweep over R 500…5500 mm × θ −45…45°.
