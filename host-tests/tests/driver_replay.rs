@@ -6,12 +6,13 @@
 //! cycle. Every range must come back to the clock's resolution, and readings
 //! at the logger's 5.000 m clip (its "nothing heard") as no echo.
 
-#[path = "driver_support.rs"]
+#[path = "common/driver_support.rs"]
 mod support;
 
 use echoloc::driver::{Eeruf, Module, ModuleConfig, Outcome, Ring, RingConfig, Schedule, SpeedOfSound};
-use embedded_hal_mock::eh1::digital::Mock;
-use support::{tof_ref_us, window_ref_us, EchoSpec, Expect, MockClock, Pins, Rig, Scripts};
+use support::{
+    assert_gaps, late_limit_ref_us, tof_ref_us, window_ref_us, EchoSpec, Expect, MockClock, Pins, Rig, Scripts,
+};
 
 const N: usize = 24;
 const A: usize = 5;
@@ -70,18 +71,20 @@ fn replay(tick: u32) -> Figures {
     let sched = Schedule::<N>::spread();
     let order = *sched.order();
 
-    let mut pins = Pins::<A>::new(&Scripts { addr: vec![Vec::new(); A], ..Scripts::default() });
-    let (echo, init, binh, addr): (Mock, Mock, Mock, [Mock; A]) = pins.clones();
     // Start 30 s before the 32-bit µs clock wraps; the replay lasts about
     // 79 minutes of ring time, so it wraps twice.
     let origin = (u32::MAX - 30_000_000) / 64 * 64;
     let clock = MockClock::at(origin);
     clock.resolution(tick);
+    let mut pins = Pins::<A>::new(&Scripts { addr: vec![Vec::new(); A], ..Scripts::default() }, &clock);
+    let (echo, init, binh, addr) = pins.clones();
     let module = Module::new(init, echo, addr, &clock, timing).with_binh(binh);
     let mut ring = Ring::new(module, sched, rt);
 
     // The documented slot times, from the configuration alone.
-    let slot = u64::from(window + RING_DOWN_US);
+    let late_limit = late_limit_ref_us(EERUF.alternating_us, EERUF.tolerance_mm, TC);
+    assert_eq!(rt.late_limit_us(), late_limit);
+    let slot = u64::from(window + RING_DOWN_US + late_limit);
     let alt = u64::from(EERUF.alternating_us);
     let period = N as u64 * (slot + alt);
     let due = |k: u64, j: u64| -> u32 {
@@ -118,17 +121,25 @@ fn replay(tick: u32) -> Figures {
             }
         }
         assert_eq!(got.len(), N, "row {k}");
+        // The pins, in order across all of them: the protocol kept, the
+        // pings where the readings say, the ring-down gap after each window.
+        let fired = pins.check();
+        assert_eq!(fired.iter().map(|f| f.at).collect::<Vec<_>>(), fires, "row {k}");
+        assert_gaps(&fired, window, RING_DOWN_US);
         for (j, r) in got.iter().enumerate() {
             let t = order[j];
             let mm = row[t as usize];
             assert_eq!((r.transducer, r.slot as usize, r.cycle), (t, j, k as u32), "row {k}");
             assert_eq!(r.fired_at_us, fires[j], "row {k} slot {j}");
+            // Late only by the clock's resolution, well within the limit.
+            assert!(r.late_us < tick && r.late_us <= late_limit, "row {k} slot {j}: {} µs late", r.late_us);
             fig.readings += 1;
             match r.outcome {
                 Outcome::Range { .. } => fig.confirmed += 1,
                 Outcome::Unconfirmed { .. } => fig.unconfirmed += 1,
                 Outcome::Crosstalk { .. } => fig.crosstalk += 1,
                 Outcome::NoEcho => fig.no_echo += 1,
+                Outcome::Untimed { .. } => panic!("row {k} S{}: untimed {:?}", t + 1, r.outcome),
                 Outcome::Fault(f) => panic!("row {k} S{}: fault {f:?}", t + 1),
             }
             if mm == CLIP_MM {

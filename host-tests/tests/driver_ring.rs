@@ -1,19 +1,25 @@
 //! The ring through embedded-hal-mock pins and a scripted clock: the firing
 //! schedule, a full cycle in order on its slot times, faults on single slots,
-//! pin errors, late polls, and crosstalk rejected by EERUF's alternating
-//! delays (with the counter-case that shows the delays are what does it).
+//! pin errors, late polls (the ring-down gap kept, EERUF held back), and
+//! crosstalk rejected by EERUF's alternating delays (with the counter-case
+//! that shows the delays are what does it). Every pin operation is logged
+//! across pins and checked against the ping protocol, and the pings the pins
+//! saw must be the readings' pings with the ring-down gap after each window.
 
-#[path = "driver_support.rs"]
+#[path = "common/driver_support.rs"]
 mod support;
 
 use echoloc::driver::{
     ConfigError, Eeruf, Error, Fault, Module, ModuleConfig, Outcome, Ring, RingConfig, RingReading, Schedule,
     SpeedOfSound,
 };
-use embedded_hal_mock::eh1::digital::{Mock, State, Transaction as T};
-use support::{pin_error, tof_ref_us, window_ref_us, EchoSpec, Expect, MockClock, Pins, Rig, Step};
+use embedded_hal_mock::eh1::digital::{State, Transaction as T};
+use support::{
+    assert_gaps, init_pings, late_limit_ref_us, pin_error, reads, tof_ref_us, window_ref_us, writes, EchoSpec, Expect,
+    Fired, MockClock, Pins, RecPin, Rig, Scripts, Step,
+};
 
-type R<'c, const A: usize, const N: usize> = Ring<Mock, Mock, Mock, Mock, &'c MockClock, A, N>;
+type R<'c, const A: usize, const N: usize> = Ring<RecPin<'c>, RecPin<'c>, RecPin<'c>, RecPin<'c>, &'c MockClock, A, N>;
 
 const TC: i16 = 2000;
 
@@ -22,7 +28,7 @@ fn module_cfg(max_range_mm: u32) -> ModuleConfig {
 }
 
 fn build<'c, const A: usize, const N: usize>(
-    pins: &Pins<A>,
+    pins: &Pins<'c, A>,
     clock: &'c MockClock,
     cfg: ModuleConfig,
     ring: RingConfig,
@@ -34,22 +40,51 @@ fn build<'c, const A: usize, const N: usize>(
 }
 
 /// The documented slot times, computed here from the configuration alone.
+#[derive(Clone, Copy)]
 struct Plan {
     origin: u32,
     n: u32,
     slot: u32,
     alt: u32,
+    late_limit: u32,
 }
 
 impl Plan {
-    fn new(origin: u32, n: usize, max_range_mm: u32, ring_down_us: u32, alt: u32) -> Self {
-        Self { origin, n: n as u32, slot: window_ref_us(max_range_mm, TC) + ring_down_us, alt }
+    /// `eeruf`: step and tolerance.
+    fn new(origin: u32, n: usize, max_range_mm: u32, ring_down_us: u32, eeruf: Option<(u32, u32)>) -> Self {
+        let (alt, late_limit) = eeruf.map_or((0, 0), |(alt, tol)| (alt, late_limit_ref_us(alt, tol, TC)));
+        Self { origin, n: n as u32, slot: window_ref_us(max_range_mm, TC) + ring_down_us + late_limit, alt, late_limit }
     }
-    fn fire(&self, cycle: u32, slot: u32) -> u32 {
+    fn offset(&self, cycle: u32, slot: u32) -> u32 {
         let period = self.n * (self.slot + self.alt);
         let shift = if cycle % 2 == 1 { (slot + 1) * self.alt } else { 0 };
-        self.origin.wrapping_add(cycle * period + slot * self.slot + shift)
+        cycle * period + slot * self.slot + shift
     }
+    fn fire(&self, cycle: u32, slot: u32) -> u32 {
+        self.origin.wrapping_add(self.offset(cycle, slot))
+    }
+    /// The slot fires `late` µs after its time: the documented rule moves
+    /// the schedule onto the firing when that is beyond the late limit.
+    /// Returns the firing time.
+    fn fire_late(&mut self, cycle: u32, slot: u32, late: u32) -> u32 {
+        let f = self.fire(cycle, slot) + late;
+        if late > self.late_limit {
+            self.origin = f - self.offset(cycle, slot);
+        }
+        f
+    }
+}
+
+/// The pings the pins saw are the readings' pings (a faulted slot fires
+/// nothing), on the readings' times, each followed by the ring-down gap.
+fn check_fired(fired: &[Fired], readings: &[RingReading], window: u32, ring_down: u32) {
+    let pinged: Vec<(u8, u32)> = readings
+        .iter()
+        .filter(|r| !matches!(r.outcome, Outcome::Fault(Fault::EchoStuckHigh)))
+        .map(|r| (r.transducer, r.fired_at_us))
+        .collect();
+    assert_eq!(fired.iter().map(|f| (f.transducer, f.at)).collect::<Vec<_>>(), pinged);
+    assert_gaps(fired, window, ring_down);
 }
 
 fn run<const A: usize, const N: usize>(ring: &mut R<'_, A, N>, clock: &MockClock, steps: &[Step]) -> Vec<RingReading> {
@@ -99,7 +134,7 @@ fn full_cycle_in_scheduled_order_on_slot_times() {
     let world: Vec<Option<u32>> = (0..N as u32).map(|i| (i % 6 != 5).then_some(600 + 250 * i)).collect();
     let sched = Schedule::<N>::spread();
     let order = *sched.order();
-    let plan = Plan::new(3_000, N, rmax, ring_down, alt);
+    let plan = Plan::new(3_000, N, rmax, ring_down, Some((alt, 50)));
     let mut rig = Rig::new(4, window_ref_us(rmax, TC), None);
     for k in 0..2 {
         for j in 0..N {
@@ -109,10 +144,11 @@ fn full_cycle_in_scheduled_order_on_slot_times() {
         }
     }
     let (scripts, steps) = rig.take();
-    let mut pins = Pins::<4>::new(&scripts);
     let clock = MockClock::at(0);
+    let mut pins = Pins::<4>::new(&scripts, &clock);
     let cfg = RingConfig { ring_down_us: ring_down, eeruf: Some(Eeruf { alternating_us: alt, tolerance_mm: 50 }) };
     let mut ring = build::<4, N>(&pins, &clock, module_cfg(rmax), cfg);
+    assert_eq!(ring.timing().late_limit_us(), plan.late_limit);
     assert_eq!(ring.timing().slot_us(), plan.slot);
     assert_eq!(ring.next_fire_us(), None);
     let readings = run(&mut ring, &clock, &steps);
@@ -128,16 +164,17 @@ fn full_cycle_in_scheduled_order_on_slot_times() {
             (Some(mm), _) => Outcome::Range { range_mm: mm, tof_us: tof_ref_us(f64::from(mm), TC) },
         };
         assert_eq!(r.outcome, want, "transducer {t} cycle {k}");
+        assert_eq!(r.late_us, 0);
     }
     drop(ring);
-    pins.done();
+    check_fired(&pins.done(), &readings, window_ref_us(rmax, TC), ring_down);
 }
 
 #[test]
 fn faults_on_single_slots_keep_the_schedule() {
     const N: usize = 4;
     let (rmax, ring_down, alt) = (3_000, 2_000, 1_000);
-    let plan = Plan::new(0, N, rmax, ring_down, alt);
+    let plan = Plan::new(0, N, rmax, ring_down, Some((alt, 50)));
     let order = *Schedule::<N>::spread().order();
     assert_eq!(order, [0, 1, 2, 3]);
     let tof = tof_ref_us(1_000.0, TC);
@@ -150,8 +187,8 @@ fn faults_on_single_slots_keep_the_schedule() {
         rig.ring_ping(plan.fire(1, j as u32), order[j], EchoSpec::At(tof), Some(order[(j + 1) % N]));
     }
     let (scripts, steps) = rig.take();
-    let mut pins = Pins::<2>::new(&scripts);
     let clock = MockClock::at(0);
+    let mut pins = Pins::<2>::new(&scripts, &clock);
     let cfg = RingConfig { ring_down_us: ring_down, eeruf: Some(Eeruf { alternating_us: alt, tolerance_mm: 50 }) };
     let mut ring = build::<2, N>(&pins, &clock, module_cfg(rmax), cfg);
     let readings = run(&mut ring, &clock, &steps);
@@ -176,35 +213,30 @@ fn faults_on_single_slots_keep_the_schedule() {
         assert_eq!(r.fired_at_us, plan.fire((i / N) as u32, (i % N) as u32));
     }
     drop(ring);
-    pins.done();
+    check_fired(&pins.done(), &readings, window_ref_us(rmax, TC), ring_down);
 }
 
 #[test]
 fn pin_error_from_set_high_retries_the_slot_and_late_polls_reanchor() {
     const N: usize = 2;
-    let rmax = 3_000;
-    let slot = window_ref_us(rmax, TC) + 2_000;
+    let (rmax, ring_down) = (3_000, 2_000);
+    let window = window_ref_us(rmax, TC);
+    // Without EERUF the late limit is 0: the slot is window + ring-down.
+    let slot = window + ring_down;
     let tof = tof_ref_us(1_500.0, TC);
     let err = pin_error();
     // Fire 0, its echo, fire 1 (fails), fire 1 again, fire 0 late; the
     // echoes of the last two come by input capture, not by reading ECHO.
-    let echo = [T::get(State::Low), T::get(State::High), T::get(State::Low), T::get(State::Low), T::get(State::Low)];
-    let init = [
-        T::set(State::High),
-        T::set(State::Low),
-        T::set(State::High).with_error(err.clone()),
-        T::set(State::Low),
-        T::set(State::High),
-        T::set(State::Low),
-        T::set(State::High),
-        T::set(State::Low),
-    ];
+    let mut init = init_pings(1);
+    init.extend([T::set(State::High).with_error(err.clone()), T::set(State::Low)]);
+    init.extend(init_pings(2));
     // Line 0 selects 0, then 1 during the first gap, then 0, then 1 again.
-    let a0 = [T::set(State::Low), T::set(State::High), T::set(State::Low), T::set(State::High)];
-    let mut pins =
-        Pins::<1> { echo: Mock::new(&echo), init: Mock::new(&init), binh: Mock::new(&[]), addr: [Mock::new(&a0)] };
+    let s = Scripts { echo: reads("LHLLL"), init, binh: Vec::new(), addr: vec![writes("LHLH")] };
     let clock = MockClock::at(100);
-    let mut ring = build::<1, N>(&pins, &clock, module_cfg(rmax), RingConfig { ring_down_us: 2_000, eeruf: None });
+    let mut pins = Pins::<1>::new(&s, &clock);
+    let mut ring = build::<1, N>(&pins, &clock, module_cfg(rmax), RingConfig { ring_down_us: ring_down, eeruf: None });
+    assert_eq!(ring.timing().late_limit_us(), 0);
+    assert_eq!(ring.timing().slot_us(), slot);
     assert_eq!(ring.poll(), Ok(None)); // fires transducer 0 at 100
     clock.set(100 + tof);
     let r = ring.poll().unwrap().unwrap();
@@ -217,19 +249,23 @@ fn pin_error_from_set_high_retries_the_slot_and_late_polls_reanchor() {
     assert_eq!(ring.poll(), Ok(None));
     // Captured edge instead of polling.
     let r = ring.echo_captured(100 + slot + 10 + tof).unwrap();
-    assert_eq!((r.transducer, r.fired_at_us), (1, 100 + slot + 10));
+    assert_eq!((r.transducer, r.fired_at_us, r.late_us), (1, 100 + slot + 10, 10));
     assert_eq!(r.outcome, Outcome::Range { range_mm: 1_500, tof_us: tof });
-    // The slot pattern stays anchored to the schedule, not the late firing.
-    assert_eq!(ring.next_fire_us(), Some(100 + 2 * slot));
+    // Without EERUF nothing needs the pattern: the schedule follows the
+    // late firing, and the next ping is a whole slot after it.
+    assert_eq!(ring.next_fire_us(), Some(100 + 2 * slot + 10));
     // Polled three slots late: the schedule moves on instead of bursting.
     let late = 100 + 5 * slot;
     clock.set(late);
     assert_eq!(ring.poll(), Ok(None));
     assert_eq!(ring.next_fire_us(), Some(late));
-    assert_eq!(ring.echo_captured(late + tof).unwrap().cycle, 1);
+    let r = ring.echo_captured(late + tof).unwrap();
+    assert_eq!((r.cycle, r.late_us), (1, 3 * slot - 10));
     assert_eq!(ring.next_fire_us(), Some(late + slot));
     drop(ring);
-    pins.done();
+    let fired = pins.done();
+    assert_eq!(fired.iter().map(|f| (f.transducer, f.at)).collect::<Vec<_>>(), [(0, 100), (1, 110 + slot), (0, late)]);
+    assert_gaps(&fired, window, ring_down);
 }
 
 /// A reflection of one transducer's ping that reaches another.
@@ -239,27 +275,35 @@ struct Ghost {
     after_us: u32,
 }
 
-/// Simulate 4 cycles of an 8-transducer ring in which two ghosts arrive
-/// inside other transducers' windows. Returns, per reading, whether its echo
-/// was a ghost, and the readings.
-fn crosstalk_run(eeruf: Option<Eeruf>) -> Vec<(bool, RingReading)> {
-    const N: usize = 8;
-    let (rmax, ring_down) = (3_000, 2_000);
-    let alt = eeruf.map_or(0, |e| e.alternating_us);
-    let own: [Option<u32>; N] =
-        [Some(2_000), Some(2_500), Some(2_500), Some(1_500), Some(2_500), Some(2_500), None, Some(2_500)];
-    let ghosts = [Ghost { from: 3, to: 6, after_us: 24_000 }, Ghost { from: 5, to: 0, after_us: 25_000 }];
+const RMAX: u32 = 3_000;
+const RING_DOWN: u32 = 2_000;
+
+/// Simulate `cycles` cycles of an `N`-transducer ring with `A` address lines
+/// in a world where transducer `t` sees its own wall at `own[t]` mm and the
+/// `ghosts` arrive inside other transducers' windows; `late` lists the
+/// slots `(cycle, slot, µs)` first polled that late. The ghosts are placed
+/// by the actual firing times, which follow the documented rule for late
+/// slots. Returns, per reading, whether its echo was a ghost, and the
+/// readings; checks the pins' protocol, pings and gaps on the way.
+fn simulate<const A: usize, const N: usize>(
+    own: [Option<u32>; N],
+    ghosts: &[Ghost],
+    eeruf: Option<Eeruf>,
+    late: &[(u32, u32, u32)],
+    cycles: u32,
+) -> Vec<(bool, RingReading)> {
     let order = *Schedule::<N>::spread().order();
-    let window = window_ref_us(rmax, TC);
+    let window = window_ref_us(RMAX, TC);
     let blanking = echoloc::driver::POLAROID_BLANKING_US;
-    let plan = Plan::new(50_000, N, rmax, ring_down, alt);
+    let mut plan = Plan::new(50_000, N, RMAX, RING_DOWN, eeruf.map(|e| (e.alternating_us, e.tolerance_mm)));
     let mut fired: Vec<(u32, u8)> = Vec::new();
     let mut from_ghost = Vec::new();
-    let mut rig = Rig::new(3, window, None);
-    for k in 0..4 {
+    let mut rig = Rig::new(A, window, None);
+    for k in 0..cycles {
         for j in 0..N {
             let t = order[j];
-            let f = plan.fire(k, j as u32);
+            let l = late.iter().find(|x| (x.0, x.1) == (k, j as u32)).map_or(0, |x| x.2);
+            let f = plan.fire_late(k, j as u32, l);
             let mut best: Option<(u32, bool)> = own[t as usize].map(|mm| (tof_ref_us(f64::from(mm), TC), false));
             for g in ghosts.iter().filter(|g| g.to == t) {
                 for &(at, src) in &fired {
@@ -275,18 +319,31 @@ fn crosstalk_run(eeruf: Option<Eeruf>) -> Vec<(bool, RingReading)> {
             }
             from_ghost.push(best.is_some_and(|(_, g)| g));
             let echo = best.map_or(EchoSpec::Never, |(x, _)| EchoSpec::At(x));
-            rig.ring_ping(f, t, echo, Some(order[(j + 1) % N]));
+            if l > 0 {
+                rig.late_ring_ping(f, t, echo, Some(order[(j + 1) % N]));
+            } else {
+                rig.ring_ping(f, t, echo, Some(order[(j + 1) % N]));
+            }
             fired.push((f, t));
         }
     }
     let (scripts, steps) = rig.take();
-    let mut pins = Pins::<3>::new(&scripts);
     let clock = MockClock::at(0);
-    let mut ring = build::<3, N>(&pins, &clock, module_cfg(rmax), RingConfig { ring_down_us: ring_down, eeruf });
+    let mut pins = Pins::<A>::new(&scripts, &clock);
+    let mut ring = build::<A, N>(&pins, &clock, module_cfg(RMAX), RingConfig { ring_down_us: RING_DOWN, eeruf });
+    assert_eq!(ring.timing().slot_us(), plan.slot);
     let readings = run(&mut ring, &clock, &steps);
     drop(ring);
-    pins.done();
+    check_fired(&pins.done(), &readings, window, RING_DOWN);
     from_ghost.into_iter().zip(readings).collect()
+}
+
+/// 4 cycles of an 8-transducer ring in which two ghosts arrive inside other
+/// transducers' windows.
+fn crosstalk_run(eeruf: Option<Eeruf>) -> Vec<(bool, RingReading)> {
+    let own = [Some(2_000), Some(2_500), Some(2_500), Some(1_500), Some(2_500), Some(2_500), None, Some(2_500)];
+    let ghosts = [Ghost { from: 3, to: 6, after_us: 24_000 }, Ghost { from: 5, to: 0, after_us: 25_000 }];
+    simulate::<3, 8>(own, &ghosts, eeruf, &[], 4)
 }
 
 #[test]
@@ -349,5 +406,69 @@ fn ring_configs_are_checked() {
     assert_eq!(RingConfig { ring_down_us: 1_000_000, eeruf: None }.timing::<4096>(&t), Err(ConfigError::CycleTooLong));
     let ok = RingConfig { ring_down_us: 3_000, eeruf: Some(Eeruf { alternating_us: 1_000, tolerance_mm: 50 }) };
     let rt = ok.timing::<24>(&t).unwrap();
-    assert_eq!(rt.period_us(), 24 * (t.window_us() + 3_000 + 1_000));
+    // The late limit (352 µs) is part of every slot.
+    assert_eq!(rt.late_limit_us(), late_limit_ref_us(1_000, 50, TC));
+    assert_eq!(rt.late_limit_us(), 352);
+    assert_eq!(rt.period_us(), 24 * (t.window_us() + 3_000 + 352 + 1_000));
+    // The shortest step that moves a range past 50 mm: 295 µs (50.6 mm).
+    let edge =
+        |alternating_us| RingConfig { ring_down_us: 3_000, eeruf: Some(Eeruf { alternating_us, tolerance_mm: 50 }) };
+    assert_eq!(edge(295).timing::<24>(&t).map(|r| r.late_limit_us()), Ok(0));
+    assert_eq!(edge(294).timing::<24>(&t), Err(ConfigError::AlternatingDelay));
+}
+
+const EERUF: Eeruf = Eeruf { alternating_us: 1_000, tolerance_mm: 50 };
+
+#[test]
+fn a_late_poll_keeps_the_ring_down_gap_and_holds_eeruf_back() {
+    // Four transducers, each with a wall at 1 m. In cycle 1, slot 2 is first
+    // polled 5 ms late: more than the ring-down gap (2 ms), less than a slot
+    // (19.8 ms). In cycle 3, slot 0 is polled 300 µs late, within the limit.
+    const N: usize = 4;
+    let own = [Some(1_000); N];
+    let late = [(1, 2, 5_000), (3, 0, 300)];
+    let run = simulate::<2, N>(own, &[], Some(EERUF), &late, 5);
+    let window = window_ref_us(RMAX, TC);
+    let slot = window + RING_DOWN + late_limit_ref_us(1_000, 50, TC);
+    let at = |k: usize, j: usize| run[k * N + j].1;
+    // The late ping says how late it was, and the next one comes a whole
+    // slot (+ the odd cycle's step) after it: the full gap after its window
+    // (check_fired in simulate asserts every gap from the pins' log).
+    assert_eq!(at(1, 2).late_us, 5_000);
+    assert_eq!(at(1, 3).fired_at_us - at(1, 2).fired_at_us, slot + EERUF.alternating_us);
+    assert_eq!(at(1, 3).late_us, 0);
+    // Within the limit the pattern holds: the next slot is on its old time.
+    assert_eq!(at(3, 0).late_us, 300);
+    assert_eq!(at(3, 1).fired_at_us - at(3, 0).fired_at_us, slot + EERUF.alternating_us - 300);
+    // EERUF: the re-anchored slot and the N - 1 after it neither confirm nor
+    // are kept; their successors have nothing to compare with; after that,
+    // confirmations resume. The 300 µs late slot changes nothing.
+    let kinds: Vec<char> = run
+        .iter()
+        .map(|(_, r)| match r.outcome {
+            Outcome::Range { range_mm: 1_000, .. } => 'R',
+            Outcome::Unconfirmed { range_mm: 1_000, .. } => 'u',
+            other => panic!("{other:?}"),
+        })
+        .collect();
+    assert_eq!(kinds.iter().collect::<String>(), "uuuu RRuu uuuu uuRR RRRR".replace(' ', ""));
+}
+
+#[test]
+fn a_late_poll_cannot_make_a_ghost_look_steady() {
+    // Transducer 0's ping reaches transducer 1 one slot and 5 ms later. On
+    // time, the ghost moves by the step (172 mm) from cycle to cycle. In
+    // cycle 1 (odd, so transducer 1 fires one step later than in even
+    // cycles relative to 0) slot 0 is polled one step late: kept on the old
+    // pattern, slot 1 would hear the ghost exactly where it was in cycle 0,
+    // and EERUF would confirm it. The late limit re-anchors instead.
+    let window = window_ref_us(RMAX, TC);
+    let slot = window + RING_DOWN + late_limit_ref_us(1_000, 50, TC);
+    let ghosts = [Ghost { from: 0, to: 1, after_us: slot + 5_000 }];
+    let run = simulate::<1, 2>([Some(2_000), None], &ghosts, Some(EERUF), &[(1, 0, 1_000)], 3);
+    let ghost: Vec<&RingReading> = run.iter().filter(|(g, _)| *g).map(|(_, r)| r).collect();
+    assert_eq!(ghost.len(), 3, "{run:?}");
+    assert!(ghost.iter().all(|r| r.transducer == 1 && r.outcome.accepted_mm().is_none()), "{ghost:?}");
+    // The ghost still moved, because the schedule moved with the late slot.
+    assert_ne!(ghost[0].outcome.echo_mm(), ghost[1].outcome.echo_mm());
 }

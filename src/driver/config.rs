@@ -122,7 +122,8 @@ pub struct Eeruf {
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct RingConfig {
     /// Quiet time after a full listening window before the next ping, µs:
-    /// lets the last transducer ring down and distant echoes die.
+    /// lets the last transducer ring down and distant echoes die. The ring
+    /// keeps it after every ping, however late the ping fired.
     pub ring_down_us: u32,
     /// Crosstalk rejection; `None` reports every echo as it comes.
     pub eeruf: Option<Eeruf>,
@@ -135,25 +136,36 @@ impl RingConfig {
         if self.ring_down_us > 1_000_000 {
             return Err(ConfigError::RingDown);
         }
-        let (alt_us, tolerance_mm) = match self.eeruf {
+        let (alt_us, tolerance_mm, late_limit_us) = match self.eeruf {
             Some(e) => {
                 // The shift an alternating step gives a crosstalk echo must
                 // exceed what consecutive true readings may differ by.
-                if e.alternating_us == 0 || module.sound.range_mm(e.alternating_us) <= e.tolerance_mm {
+                let shift_us = module.sound.tof_us_beyond(e.tolerance_mm);
+                if e.alternating_us == 0 || e.alternating_us < shift_us {
                     return Err(ConfigError::AlternatingDelay);
                 }
-                (e.alternating_us, Some(e.tolerance_mm))
+                // Four firings enter one comparison (the reading's own and a
+                // crosstalk source's, in two cycles), each late by 0..=L: the
+                // shift keeps at least step − 2L, which must still beat the
+                // tolerance.
+                (e.alternating_us, Some(e.tolerance_mm), (e.alternating_us - shift_us) / 2)
             }
-            None => (0, None),
+            None => (0, None, 0),
         };
-        // Window ≤ 11 m of flight (< 70 ms) and ring-down ≤ 1 s: no overflow.
-        let slot_us = module.window_us + self.ring_down_us;
+        // Window ≤ 11 m of flight (< 70 ms), ring-down ≤ 1 s, late limit
+        // < 2³¹ µs: the u64 sums below cannot overflow, and a cycle that fits
+        // 2³¹ µs makes every u32 here fit.
+        let slot = module.window_us as u64 + self.ring_down_us as u64 + late_limit_us as u64;
+        if slot > i32::MAX as u64 {
+            return Err(ConfigError::CycleTooLong);
+        }
+        let slot_us = slot as u32;
         let per_slot = slot_us as u64 + alt_us as u64;
         let period = per_slot * N as u64;
         if period == 0 || period > i32::MAX as u64 {
             return Err(ConfigError::CycleTooLong);
         }
-        Ok(RingTiming { slot_us, alt_us, period_us: period as u32, tolerance_mm })
+        Ok(RingTiming { slot_us, alt_us, period_us: period as u32, tolerance_mm, late_limit_us })
     }
 }
 
@@ -165,12 +177,24 @@ pub struct RingTiming<const N: usize> {
     alt_us: u32,
     period_us: u32,
     tolerance_mm: Option<u32>,
+    late_limit_us: u32,
 }
 
 impl<const N: usize> RingTiming<N> {
-    /// Slot length, µs: listening window plus ring-down gap.
+    /// Slot length, µs: listening window + ring-down gap + [late
+    /// limit](Self::late_limit_us), so that a ping fired up to the late limit
+    /// after its time still leaves the whole ring-down gap before the next.
     pub const fn slot_us(&self) -> u32 {
         self.slot_us
+    }
+    /// How late a slot may fire, µs after its scheduled time, and keep the
+    /// schedule: `(step − shift) / 2`, where `shift` is the shortest time of
+    /// flight that moves a range by more than the tolerance, so that EERUF
+    /// still tells every crosstalk echo from a true one. Without EERUF it is
+    /// 0: nothing depends on the pattern, so the ring simply follows a late
+    /// firing. A firing later than this moves the schedule on (re-anchors).
+    pub const fn late_limit_us(&self) -> u32 {
+        self.late_limit_us
     }
     /// EERUF's delay step, µs (0 without EERUF).
     pub const fn alternating_us(&self) -> u32 {

@@ -31,6 +31,8 @@ impl fmt::Display for Fault {
     }
 }
 
+impl core::error::Error for Fault {}
+
 /// An error from the driver, generic over the HAL's pin error `E`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -65,6 +67,18 @@ impl<E: fmt::Debug> fmt::Display for Error<E> {
             Self::Idle => f.write_str("no ping is in flight"),
             Self::NoSuchTransducer(t) => write!(f, "no transducer {t} on this multiplexer"),
             Self::ClockStalled => f.write_str("the clock did not advance"),
+        }
+    }
+}
+
+/// `E` needs only `Debug` (every embedded-hal pin error has it). A fault is
+/// the `source`; the pin error is not, because `E` need not implement
+/// `core::error::Error` itself.
+impl<E: fmt::Debug> core::error::Error for Error<E> {
+    fn source(&self) -> Option<&(dyn core::error::Error + 'static)> {
+        match self {
+            Self::Fault(f) => Some(f),
+            _ => None,
         }
     }
 }
@@ -111,3 +125,5 @@ impl fmt::Display for ConfigError {
         f.write_str(s)
     }
 }
+
+impl core::error::Error for ConfigError {}

@@ -6,7 +6,8 @@
 //! can end early); INIT falls, which also resets ECHO. The driver never
 //! waits inside a call: [`Module::poll`] looks once and returns, and gives
 //! "no echo" once the listening window has passed, so nothing can hang on a
-//! silent module. A board with input capture hands the edge's time stamp to
+//! silent module. A poll that comes too late to time an echo says so
+//! ([`Echo::Untimed`]) rather than guess. A board with input capture hands the edge's time stamp to
 //! [`Module::echo_captured`] instead of polling.
 
 use embedded_hal::delay::DelayNs;
@@ -30,6 +31,15 @@ pub enum Echo {
     },
     /// Nothing came back within the maximum range.
     NoEcho,
+    /// ECHO was high at the first poll after the listening window had
+    /// passed: something came back, but the poll was too late to say when
+    /// (inside the window, or from beyond the maximum range). Not "no echo":
+    /// a consumer must not read it as an empty cone.
+    Untimed {
+        /// Time from the ping to the poll that saw ECHO high, µs: the echo
+        /// rose at or before this.
+        seen_after_us: u32,
+    },
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -145,13 +155,37 @@ where
 
     /// Point the multiplexer at `transducer` now, ahead of its ping, so an
     /// analogue multiplexer can settle. Writes only the lines that change.
+    ///
+    /// If an earlier write left INIT (or BINH) possibly high, they are driven
+    /// low first: the multiplexer is never switched under a raised INIT.
     pub fn select(&mut self, transducer: u8) -> Result<(), Error<E>> {
         if !self.is_idle() {
             // Switching the multiplexer under a listening transducer would
             // cut its echo off.
             return Err(Error::Busy);
         }
+        if transducer as usize >= Self::TRANSDUCERS {
+            return Err(Error::NoSuchTransducer(transducer));
+        }
+        self.settle_idle()?;
         self.select_lines(transducer)
+    }
+
+    /// Drive low what a failed write may have left high: a ping must start
+    /// with INIT low (else no rising edge) and BINH low (else no blanking),
+    /// and the address lines must not move under a raised INIT.
+    fn settle_idle(&mut self) -> Result<(), Error<E>> {
+        if self.init_high {
+            self.init.set_low().map_err(Error::Pin)?;
+            self.init_high = false;
+        }
+        if self.binh_high {
+            if let Some(b) = self.binh.as_mut() {
+                b.set_low().map_err(Error::Pin)?;
+            }
+            self.binh_high = false;
+        }
+        Ok(())
     }
 
     fn select_lines(&mut self, transducer: u8) -> Result<(), Error<E>> {
@@ -190,18 +224,8 @@ where
         if transducer as usize >= Self::TRANSDUCERS {
             return Err(Error::NoSuchTransducer(transducer));
         }
-        // Leftovers of a stop whose writes failed: a ping must start with
-        // INIT low (else no rising edge) and BINH low (else no blanking).
-        if self.init_high {
-            self.init.set_low().map_err(Error::Pin)?;
-            self.init_high = false;
-        }
-        if self.binh_high {
-            if let Some(b) = self.binh.as_mut() {
-                b.set_low().map_err(Error::Pin)?;
-            }
-            self.binh_high = false;
-        }
+        // Leftovers of a stop whose writes failed.
+        self.settle_idle()?;
         // With INIT low a healthy module holds ECHO low: high now would be
         // taken for an echo at once.
         if self.echo.is_high().map_err(Error::Pin)? {
@@ -226,7 +250,9 @@ where
     ///
     /// The range is taken at the poll that first sees ECHO high, so its
     /// resolution is the polling interval: poll often, or use input capture
-    /// and [`Module::echo_captured`].
+    /// and [`Module::echo_captured`]. A poll that first looks after the
+    /// window has passed and finds ECHO high cannot time the echo and gives
+    /// [`Echo::Untimed`], never a range or "no echo".
     pub fn poll(&mut self) -> Result<Option<Echo>, Error<E>> {
         let Phase::Listening { fired_at, blanking_end } = self.phase else {
             return Err(Error::Idle);
@@ -238,6 +264,12 @@ where
         };
         let el = elapsed(fired_at, self.clock.now_us());
         if high {
+            if el > self.timing.window_us() {
+                // Too late to say when it rose: inside the window, missed by
+                // a late poll, or from beyond R_max. Either way not silence.
+                self.finish().map_err(Error::Pin)?;
+                return Ok(Some(Echo::Untimed { seen_after_us: el }));
+            }
             return self.conclude(el, blanking_end).map(Some);
         }
         if el >= self.timing.window_us() {
@@ -264,7 +296,9 @@ where
 
     /// The rising edge of ECHO was captured at `at_us` (a hardware
     /// input-capture time stamp, or an interrupt's clock reading): finish the
-    /// ping with it. An edge before the ping counts as inside blanking.
+    /// ping with it. An edge before the ping counts as inside blanking; an
+    /// edge after the listening window came from beyond the maximum range
+    /// and is "no echo" (the stamp, unlike a late poll, says exactly when).
     pub fn echo_captured(&mut self, at_us: u32) -> Result<Echo, Error<E>> {
         let Phase::Listening { fired_at, blanking_end } = self.phase else {
             return Err(Error::Idle);
@@ -313,7 +347,7 @@ where
         let outcome = if el < blanking_end {
             Err(Error::Fault(Fault::EchoInBlanking { tof_us: el }))
         } else if el > self.timing.window_us() {
-            // Too late to say when it rose (a late poll, or beyond R_max).
+            // Only a capture stamp gets here: an exact edge beyond R_max.
             Ok(Echo::NoEcho)
         } else {
             Ok(Echo::Range { range_mm: self.timing.sound().range_mm(el), tof_us: el })

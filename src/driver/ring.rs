@@ -2,14 +2,24 @@
 //!
 //! Slot `j` of cycle `k` fires transducer `schedule[j]` at
 //! `start + k·period + j·slot + [k odd]·(j+1)·step` ([`RingTiming::fire_offset_us`]):
-//! fixed slots of one listening window plus the ring-down gap, shifted in odd
-//! cycles by EERUF's alternating delays. The slot times are anchored to the
-//! schedule, not to when a ping happened to end, so the cycle rate is steady
-//! and every crosstalk path (from a ping in this cycle or the last) moves by
-//! at least one step between consecutive readings of a transducer, while a
-//! true echo stays put. A reading that moves by more than the tolerance is
-//! reported as [`Outcome::Crosstalk`], one that agrees with the last as
-//! [`Outcome::Range`].
+//! fixed slots of one listening window, the ring-down gap and the late limit,
+//! shifted in odd cycles by EERUF's alternating delays. The slot times are
+//! anchored to the schedule, not to when a ping happened to end, so the cycle
+//! rate is steady and every crosstalk path (from a ping in this cycle or the
+//! last) moves by at least one step between consecutive readings of a
+//! transducer, while a true echo stays put. A reading that moves by more than
+//! the tolerance is reported as [`Outcome::Crosstalk`], one that agrees with
+//! the last as [`Outcome::Range`].
+//!
+//! Late polls. A slot fires at the first poll at or after its time. Fired up
+//! to [`RingTiming::late_limit_us`] late it keeps the schedule: the slot has
+//! room for that, so the whole ring-down gap still follows its window, and
+//! EERUF's shifts still beat the tolerance. Fired later than that, the slot
+//! re-anchors the schedule on itself, so the next ping again comes a whole
+//! slot later (never a short gap, never a burst of catch-up pings); the
+//! readings of the cycle that starts there have crosstalk paths from before
+//! and after the jump, so EERUF neither confirms nor rejects them
+//! ([`Outcome::Unconfirmed`]) nor keeps them to compare with.
 //!
 //! Between pings the ring points the multiplexer at the next transducer, so
 //! the lines settle during the ring-down gap.
@@ -35,7 +45,9 @@ pub enum Outcome {
         tof_us: u32,
     },
     /// An echo with nothing to confirm it yet: the previous reading of this
-    /// transducer was no echo, a fault, or not from the previous cycle.
+    /// transducer was no echo, a fault, or not from the previous cycle; or
+    /// the schedule was re-anchored within the last cycle (a slot fired more
+    /// than the late limit late), so that the comparison would be unsound.
     Unconfirmed {
         /// One-way range, mm.
         range_mm: u32,
@@ -54,6 +66,13 @@ pub enum Outcome {
     },
     /// Nothing within the maximum range.
     NoEcho,
+    /// ECHO was high, but the ring was first polled after the listening
+    /// window had passed, so the echo could not be timed
+    /// ([`Echo::Untimed`]). Not "no echo".
+    Untimed {
+        /// Time from the ping to the poll that saw ECHO high, µs.
+        seen_after_us: u32,
+    },
     /// The module misbehaved on this slot.
     Fault(Fault),
 }
@@ -90,6 +109,10 @@ pub struct RingReading {
     pub cycle: u32,
     /// Clock reading when INIT rose (or when a faulty slot was skipped), µs.
     pub fired_at_us: u32,
+    /// How long after its scheduled time the slot fired, µs. More than
+    /// [`RingTiming::late_limit_us`] means the schedule was re-anchored at
+    /// this slot.
+    pub late_us: u32,
     /// What it found.
     pub outcome: Outcome,
 }
@@ -108,7 +131,7 @@ enum State {
     /// Waiting for the current slot's firing time.
     Waiting,
     /// The current slot's ping is in flight.
-    Listening { fired_at: u32 },
+    Listening { fired_at: u32, late_us: u32 },
 }
 
 /// A sonar ring of `N` transducers on a [`Module`] with `A` address lines.
@@ -123,6 +146,9 @@ pub struct Ring<INIT, ECHO, BINH, ADDR, CLK, const A: usize, const N: usize> {
     cycle: u32,
     slot: usize,
     last: [Last; N],
+    /// Readings still to finish since the last re-anchor whose crosstalk
+    /// paths may straddle it: EERUF neither judges them nor keeps them.
+    settle: usize,
 }
 
 impl<INIT, ECHO, BINH, ADDR, CLK, E, const A: usize, const N: usize> Ring<INIT, ECHO, BINH, ADDR, CLK, A, N>
@@ -150,6 +176,7 @@ where
             cycle: 0,
             slot: 0,
             last: [Last::Nothing; N],
+            settle: 0,
         }
     }
 
@@ -181,6 +208,9 @@ where
     /// reading when a slot finishes. Never waits; call it at least as often
     /// as the range resolution you want (one call per µs of clock ≈ 0.17 mm).
     ///
+    /// A slot fires at the first call at or after its time; see the module
+    /// docs for what a late call does to the schedule.
+    ///
     /// A pin error is returned as `Err` with the module left idle: if it
     /// came while firing, the same slot is tried again at the next call; if
     /// it came while listening, that slot's reading is lost and the ring
@@ -191,26 +221,19 @@ where
                 self.origin = self.module.now_us();
                 self.cycle = 0;
                 self.slot = 0;
-                self.fire()
+                self.settle = 0;
+                self.fire(true)
             }
             State::Waiting => {
-                let now = self.module.now_us();
-                let due = self.due();
-                if !reached(now, due) {
+                if !reached(self.module.now_us(), self.due()) {
                     return Ok(None);
                 }
-                let late = elapsed(due, now);
-                if late > self.timing.slot_us() {
-                    // Polled far too late to keep the slot pattern: move the
-                    // whole schedule on rather than fire a burst of slots.
-                    self.origin = self.origin.wrapping_add(late);
-                }
-                self.fire()
+                self.fire(false)
             }
-            State::Listening { fired_at } => match self.module.poll() {
+            State::Listening { fired_at, late_us } => match self.module.poll() {
                 Ok(None) => Ok(None),
-                Ok(Some(echo)) => Ok(Some(self.finish_slot(fired_at, Ok(echo)))),
-                Err(Error::Fault(f)) => Ok(Some(self.finish_slot(fired_at, Err(f)))),
+                Ok(Some(echo)) => Ok(Some(self.finish_slot(fired_at, late_us, Ok(echo)))),
+                Err(Error::Fault(f)) => Ok(Some(self.finish_slot(fired_at, late_us, Err(f)))),
                 Err(e) => {
                     self.advance();
                     Err(e)
@@ -222,12 +245,12 @@ where
     /// The ECHO edge of the ping in flight was captured at `at_us`: finish
     /// the slot with it (see [`Module::echo_captured`]).
     pub fn echo_captured(&mut self, at_us: u32) -> Result<RingReading, Error<E>> {
-        let State::Listening { fired_at } = self.state else {
+        let State::Listening { fired_at, late_us } = self.state else {
             return Err(Error::Idle);
         };
         match self.module.echo_captured(at_us) {
-            Ok(echo) => Ok(self.finish_slot(fired_at, Ok(echo))),
-            Err(Error::Fault(f)) => Ok(self.finish_slot(fired_at, Err(f))),
+            Ok(echo) => Ok(self.finish_slot(fired_at, late_us, Ok(echo))),
+            Err(Error::Fault(f)) => Ok(self.finish_slot(fired_at, late_us, Err(f))),
             Err(e) => {
                 self.advance();
                 Err(e)
@@ -240,6 +263,7 @@ where
     pub fn reset(&mut self) -> Result<(), Error<E>> {
         self.state = State::Unanchored;
         self.last = [Last::Nothing; N];
+        self.settle = 0;
         self.module.cancel()
     }
 
@@ -257,37 +281,70 @@ where
         self.schedule.transducer(self.slot).unwrap_or(0)
     }
 
-    fn fire(&mut self) -> Result<Option<RingReading>, Error<E>> {
+    /// How late `at` is for the current slot, µs (0 if not yet due).
+    fn late(&self, at: u32) -> u32 {
+        let due = self.due();
+        if reached(at, due) {
+            elapsed(due, at)
+        } else {
+            0
+        }
+    }
+
+    /// Fire the current slot (it is due). `anchoring`: the first slot of a
+    /// fresh schedule, which the ping itself anchors.
+    fn fire(&mut self, anchoring: bool) -> Result<Option<RingReading>, Error<E>> {
         let t = self.current();
         match self.module.start(t) {
             Ok(fired_at) => {
-                self.state = State::Listening { fired_at };
+                // Lateness by the clock reading taken as INIT rose.
+                let late_us = if anchoring { 0 } else { self.late(fired_at) };
+                if anchoring || late_us > self.timing.late_limit_us() {
+                    // Re-anchor on this ping: the next one is due a whole
+                    // slot after it, so its window is followed by the whole
+                    // ring-down gap, and nothing fires in a catch-up burst.
+                    self.origin = fired_at.wrapping_sub(self.timing.fire_offset_us(self.cycle, self.slot));
+                    if !anchoring {
+                        // Every reading of the cycle from here may hear
+                        // crosstalk from pings on both sides of the jump.
+                        self.settle = N;
+                    }
+                }
+                self.state = State::Listening { fired_at, late_us };
                 Ok(None)
             }
             Err(Error::Fault(f)) => {
+                // Nothing was fired, so there is no gap to keep.
                 let at = self.module.now_us();
-                Ok(Some(self.finish_slot(at, Err(f))))
+                let late_us = self.late(at);
+                Ok(Some(self.finish_slot(at, late_us, Err(f))))
             }
             Err(e) => {
-                // Same slot again at the next poll; it is already due.
-                self.state = State::Waiting;
+                // Same slot again at the next poll; it is already due. A
+                // fresh schedule stays unanchored until its first ping.
+                self.state = if anchoring { State::Unanchored } else { State::Waiting };
                 Err(e)
             }
         }
     }
 
-    fn finish_slot(&mut self, fired_at: u32, found: Result<Echo, Fault>) -> RingReading {
+    fn finish_slot(&mut self, fired_at: u32, late_us: u32, found: Result<Echo, Fault>) -> RingReading {
         let t = self.current();
         let i = t as usize;
         let previous = self.last.get(i).copied().unwrap_or(Last::Nothing);
+        // Only readings whose crosstalk paths all lie on one anchoring of
+        // the schedule may confirm, reject or be kept.
+        let settled = self.settle == 0;
+        self.settle = self.settle.saturating_sub(1);
         let (outcome, last) = match found {
             Err(f) => (Outcome::Fault(f), Last::Nothing),
             Ok(Echo::NoEcho) => (Outcome::NoEcho, Last::Nothing),
+            Ok(Echo::Untimed { seen_after_us }) => (Outcome::Untimed { seen_after_us }, Last::Nothing),
             Ok(Echo::Range { range_mm, tof_us }) => {
-                let last = Last::Range { mm: range_mm, cycle: self.cycle };
+                let last = if settled { Last::Range { mm: range_mm, cycle: self.cycle } } else { Last::Nothing };
                 let outcome = match (self.timing.tolerance_mm(), previous) {
                     (None, _) => Outcome::Range { range_mm, tof_us },
-                    (Some(tol), Last::Range { mm, cycle }) if cycle.wrapping_add(1) == self.cycle => {
+                    (Some(tol), Last::Range { mm, cycle }) if settled && cycle.wrapping_add(1) == self.cycle => {
                         if range_mm.abs_diff(mm) <= tol {
                             Outcome::Range { range_mm, tof_us }
                         } else {
@@ -303,8 +360,14 @@ where
             *l = last;
         }
         // slot < N ≤ 256 (compile-time check), so it fits a u8.
-        let reading =
-            RingReading { transducer: t, slot: self.slot as u8, cycle: self.cycle, fired_at_us: fired_at, outcome };
+        let reading = RingReading {
+            transducer: t,
+            slot: self.slot as u8,
+            cycle: self.cycle,
+            fired_at_us: fired_at,
+            late_us,
+            outcome,
+        };
         self.advance();
         reading
     }

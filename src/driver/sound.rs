@@ -79,6 +79,19 @@ impl SpeedOfSound {
             t as u32
         }
     }
+
+    /// The shortest round-trip time, µs, whose range reads more than
+    /// `range_mm` ([`range_mm`](Self::range_mm) rounds to the nearest mm).
+    pub const fn tof_us_beyond(self, range_mm: u32) -> u32 {
+        // range_mm(t) > r  ⟺  t·c + 10⁹ ≥ (r+1)·2·10⁹  ⟺  t·c ≥ (2r+1)·10⁹.
+        // (2r+1)·10⁹ < 8.6·10¹⁸ < 2⁶⁴.
+        let t = ((2 * range_mm as u64 + 1) * (ROUND_TRIP_DIVISOR / 2)).div_ceil(self.um_per_s as u64);
+        if t > u32::MAX as u64 {
+            u32::MAX
+        } else {
+            t as u32
+        }
+    }
 }
 
 /// ⌊√n⌋, bit by bit: no float, no division, 32 iterations at most.
@@ -131,5 +144,16 @@ mod tests {
             assert_eq!(c.range_mm(c.tof_us(mm)), mm);
         }
         assert_eq!(c.tof_us(u32::MAX), u32::MAX);
+    }
+
+    #[test]
+    fn tof_beyond_is_the_first_time_past_a_range() {
+        for tc in [-4000i16, 0, 2000, 8500] {
+            let c = SpeedOfSound::at_centi_celsius(tc).unwrap();
+            for mm in [0u32, 1, 50, 51, 172, 5500] {
+                let t = c.tof_us_beyond(mm);
+                assert!(c.range_mm(t) > mm && (t == 0 || c.range_mm(t - 1) <= mm), "{tc} {mm} {t}");
+            }
+        }
     }
 }
