@@ -32,7 +32,7 @@ cargo test -q --workspace 2>&1 | tee target/host-tests.log
 # One closing line for CI readers: the sum over every test binary.
 awk '/^test result:/ { p += $4; f += $6 } END { printf "host tests: %d passed, %d failed\n", p, f }' target/host-tests.log
 
-step "QEMU firmware run (timeout in the runner)"
+step "QEMU firmware runs (timeout in the runner): main, the depot map, one kappa"
 out=$(cargo run -q -p qemu-mps2-an386 --target thumbv7em-none-eabihf --release 2>&1) || {
   echo "$out"
   echo "firmware exited non-zero"
@@ -42,6 +42,12 @@ echo "$out"
 grep -q "corrupted blob: refused" <<<"$out"
 grep -q "stack high-water mark" <<<"$out"
 grep -q "ring16 PseudoPaths" <<<"$out"
+for bin in depot kappa_cost; do
+  cargo run -q -p qemu-mps2-an386 --bin "$bin" --target thumbv7em-none-eabihf --release || {
+    echo "firmware binary $bin exited non-zero"
+    exit 1
+  }
+done
 
 step "docs"
 RUSTDOCFLAGS="-D warnings" cargo doc -q --no-deps --workspace
