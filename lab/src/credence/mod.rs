@@ -200,20 +200,24 @@ impl Reporter {
 struct Band {
     name: &'static str,
     theta: (f64, f64),
-    r_max: u32,
+    r_mm: (u32, u32),
 }
 
 /// The side lobes of the Polaroid beam at the grid's angles: the first null is
-/// near 12.7°, the first side lobe peaks near 17.2°, the second near 29°
-/// (DESIGN §6); "beyond the main lobe" is every node past the first null.
-const BANDS: [Band; 3] = [
-    Band { name: "beyond_main_lobe", theta: (15.0, 45.0), r_max: 5500 },
-    Band { name: "first_side_lobe", theta: (15.0, 20.0), r_max: 3000 },
-    Band { name: "second_side_lobe", theta: (27.5, 30.0), r_max: 1500 },
+/// near 12.7°, the first side lobe peaks near 17.2°, the second null is near
+/// 23.8°, the second side lobe peaks near 29° (DESIGN §6); "beyond the main
+/// lobe" is every node past the first null. The nulls are taken at the grid
+/// angles nearest them, where the ranges heard in the side lobes are.
+const BANDS: [Band; 5] = [
+    Band { name: "beyond_main_lobe", theta: (15.0, 45.0), r_mm: (500, 5500) },
+    Band { name: "first_side_lobe", theta: (15.0, 20.0), r_mm: (500, 3000) },
+    Band { name: "second_side_lobe", theta: (27.5, 30.0), r_mm: (500, 1500) },
+    Band { name: "first_null", theta: (12.5, 12.5), r_mm: (1000, 2500) },
+    Band { name: "second_null", theta: (22.5, 22.5), r_mm: (1000, 2500) },
 ];
 
 fn in_band(b: &Band, s: &Sample) -> bool {
-    s.theta_deg >= b.theta.0 && s.theta_deg <= b.theta.1 && s.r_mm <= b.r_max
+    s.theta_deg >= b.theta.0 && s.theta_deg <= b.theta.1 && (b.r_mm.0..=b.r_mm.1).contains(&s.r_mm)
 }
 
 /// Held-out predictions: (sample, net, gaussian).
@@ -226,15 +230,23 @@ fn band_stats(held: &Held) -> Value {
         let n = v.len().max(1) as f64;
         let mean = |f: &dyn Fn(&(Sample, f64, f64)) -> f64| v.iter().map(|x| f(x)).sum::<f64>() / n;
         let rmse = |f: &dyn Fn(&(Sample, f64, f64)) -> f64| (mean(&|x| (f(x) - x.0.kappa).powi(2))).sqrt();
+        let range = |f: &dyn Fn(&(Sample, f64, f64)) -> f64| {
+            let (lo, hi) =
+                v.iter().map(|x| f(x)).fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), k| (l.min(k), h.max(k)));
+            json!([round(lo, 4), round(hi, 4)])
+        };
         out.insert(
             b.name.into(),
             json!({
                 "theta_deg": [b.theta.0, b.theta.1],
-                "r_max_mm": b.r_max,
+                "r_mm": [b.r_mm.0, b.r_mm.1],
                 "nodes": v.len(),
                 "observed_mean_kappa": round(mean(&|x| x.0.kappa), 4),
                 "net_mean_kappa": round(mean(&|x| x.1), 4),
                 "gaussian_mean_kappa": round(mean(&|x| x.2), 4),
+                "observed_kappa_range": range(&|x| x.0.kappa),
+                "net_kappa_range": range(&|x| x.1),
+                "gaussian_kappa_range": range(&|x| x.2),
                 "net_rmse": round(rmse(&|x| x.1), 4),
                 "gaussian_rmse": round(rmse(&|x| x.2), 4),
             }),
