@@ -42,6 +42,16 @@ echo "$out"
 grep -q "corrupted blob: refused" <<<"$out"
 grep -q "stack high-water mark" <<<"$out"
 grep -q "ring16 PseudoPaths" <<<"$out"
+# A HardFault must end the run with exit code 1, never 0 (nor a hang).
+set +e
+fault=$(cargo run -q -p qemu-mps2-an386 --bin hardfault --target thumbv7em-none-eabihf --release 2>&1)
+rc=$?
+set -e
+echo "$fault"
+if [ "$rc" -ne 1 ] || ! grep -q "HardFault at pc" <<<"$fault"; then
+  echo "the HardFault handler did not exit with failure (exit code $rc)"
+  exit 1
+fi
 for bin in depot kappa_cost; do
   cargo run -q -p qemu-mps2-an386 --bin "$bin" --target thumbv7em-none-eabihf --release || {
     echo "firmware binary $bin exited non-zero"

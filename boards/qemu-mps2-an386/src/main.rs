@@ -10,14 +10,14 @@
 #![no_std]
 #![no_main]
 
-use cortex_m::peripheral::{syst::SystClkSource, SYST};
-use cortex_m_rt::{entry, exception, ExceptionFrame};
-use cortex_m_semihosting::{debug, hprintln};
+use cortex_m_rt::entry;
+use cortex_m_semihosting::hprintln;
 use echoloc::credence::net::CredenceNet;
 use echoloc::geometry::{Point, Segment};
 use echoloc::map::{BlobError, Layer, StandardMap};
 use echoloc::predict::{predict_ring, Pose, PredictParams, PIONEER16};
 use echoloc::window::{Strategy, WindowParams};
+use qemu_mps2_an386::{elapsed, exit, isqrt, spin, stack_high_water, start_systick, ticks};
 use static_cell::ConstStaticCell;
 
 /// The map lives in a static, initialised at compile time: no stack copy.
@@ -40,13 +40,7 @@ const QUERIES: [(Point, Point, &str); 6] = [
 #[entry]
 fn main() -> ! {
     let mut ok = true;
-    let mut syst = cortex_m::Peripherals::take().map(|p| p.SYST);
-    if let Some(s) = syst.as_mut() {
-        s.set_clock_source(SystClkSource::Core);
-        s.set_reload(0x00FF_FFFF);
-        s.clear_current();
-        s.enable_counter();
-    }
+    let syst = start_systick();
 
     hprintln!("echoloc {} on mps2-an386 (Cortex-M4F)", env!("CARGO_PKG_VERSION"));
     // Calibrate: a loop of exactly 2 instructions per turn (subs, bne).
@@ -168,74 +162,4 @@ fn main() -> ! {
     let (used, size) = stack_high_water();
     hprintln!("stack high-water mark: {} of {} bytes", used, size);
     exit(ok);
-}
-
-/// Exactly `2 * n` instructions (n ≥ 1): the calibration loop.
-fn spin(n: u32) {
-    // SAFETY: a register-only countdown loop; no memory is touched.
-    #[allow(unsafe_code)]
-    unsafe {
-        core::arch::asm!("1:", "subs {0}, {0}, #1", "bne 1b", inout(reg) n => _, options(nomem, nostack));
-    }
-}
-
-fn ticks(s: &Option<SYST>) -> u32 {
-    s.as_ref().map_or(0, |_| SYST::get_current())
-}
-
-/// SysTick counts down and wraps at 2^24.
-fn elapsed(start: u32, end: u32) -> u32 {
-    start.wrapping_sub(end) & 0x00FF_FFFF
-}
-
-fn isqrt(v: u64) -> u64 {
-    let mut x = v;
-    let mut y = x.div_ceil(2);
-    while y < x {
-        x = y;
-        y = (x + v / x) / 2;
-    }
-    x
-}
-
-/// Bytes of stack ever used: cortex-m-rt painted `_stack_end.._stack_start`
-/// with `0xCCCC_CCCC` before `main`; the lowest overwritten word marks the
-/// deepest use.
-fn stack_high_water() -> (usize, usize) {
-    extern "C" {
-        static _stack_start: u32;
-        static _stack_end: u32;
-    }
-    // SAFETY: only the symbols' addresses are taken; the words between them
-    // are plain RAM that cortex-m-rt painted, read with volatile reads.
-    #[allow(unsafe_code)]
-    unsafe {
-        let top = core::ptr::addr_of!(_stack_start) as usize;
-        let bottom = core::ptr::addr_of!(_stack_end) as usize;
-        let mut p = bottom;
-        while p < top && core::ptr::read_volatile(p as *const u32) == cortex_m_rt::STACK_PAINT_VALUE {
-            p += 4;
-        }
-        (top - p, top - bottom)
-    }
-}
-
-fn exit(ok: bool) -> ! {
-    debug::exit(if ok { debug::EXIT_SUCCESS } else { debug::EXIT_FAILURE });
-    // Only reached when semihosting is off (no debugger): stop here.
-    loop {
-        cortex_m::asm::wfi();
-    }
-}
-
-#[exception]
-unsafe fn HardFault(ef: &ExceptionFrame) -> ! {
-    hprintln!("HardFault at pc {:#010x}", ef.pc());
-    exit(false)
-}
-
-#[panic_handler]
-fn panic(info: &core::panic::PanicInfo) -> ! {
-    hprintln!("panic: {}", info);
-    exit(false)
 }

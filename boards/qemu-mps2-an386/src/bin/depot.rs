@@ -10,10 +10,11 @@
 #![no_std]
 #![no_main]
 
-use cortex_m_rt::{entry, exception, ExceptionFrame};
-use cortex_m_semihosting::{debug, hprintln};
+use cortex_m_rt::entry;
+use cortex_m_semihosting::hprintln;
 use echoloc::geometry::{Point, Segment};
 use echoloc::map::{Layer, StandardMap};
+use qemu_mps2_an386::{exit, isqrt};
 use static_cell::ConstStaticCell;
 
 /// The map lives in a static, initialised at compile time: no stack copy.
@@ -95,34 +96,4 @@ fn main() -> ! {
         }
     }
     exit(ok);
-}
-
-fn isqrt(v: u64) -> u64 {
-    let mut x = v;
-    let mut y = x.div_ceil(2);
-    while y < x {
-        x = y;
-        y = (x + v / x) / 2;
-    }
-    x
-}
-
-fn exit(ok: bool) -> ! {
-    debug::exit(if ok { debug::EXIT_SUCCESS } else { debug::EXIT_FAILURE });
-    // Only reached when semihosting is off (no debugger): stop here.
-    loop {
-        cortex_m::asm::wfi();
-    }
-}
-
-#[exception]
-unsafe fn HardFault(ef: &ExceptionFrame) -> ! {
-    hprintln!("HardFault at pc {:#010x}", ef.pc());
-    exit(false)
-}
-
-#[panic_handler]
-fn panic(info: &core::panic::PanicInfo) -> ! {
-    hprintln!("panic: {}", info);
-    exit(false)
 }

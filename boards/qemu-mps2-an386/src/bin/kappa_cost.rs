@@ -21,11 +21,11 @@
 
 use core::hint::black_box;
 
-use cortex_m::peripheral::{syst::SystClkSource, SYST};
-use cortex_m_rt::{entry, exception, ExceptionFrame};
-use cortex_m_semihosting::{debug, hprintln};
+use cortex_m_rt::entry;
+use cortex_m_semihosting::hprintln;
 use echoloc::credence::net::CredenceNet;
 use echoloc::credence::{Credence, EchoGeometry, Kappa};
+use qemu_mps2_an386::{elapsed, exit, spin, stack_high_water, start_systick, ticks};
 
 /// Evaluations timed: a 16 × 16 sweep of (R, θ).
 const SIDE: u32 = 16;
@@ -34,13 +34,7 @@ const N: u32 = SIDE * SIDE;
 #[entry]
 fn main() -> ! {
     let mut ok = true;
-    let mut syst = cortex_m::Peripherals::take().map(|p| p.SYST);
-    if let Some(s) = syst.as_mut() {
-        s.set_clock_source(SystClkSource::Core);
-        s.set_reload(0x00FF_FFFF);
-        s.clear_current();
-        s.enable_counter();
-    }
+    let syst = start_systick();
     hprintln!("echoloc {} credence cost on mps2-an386 (Cortex-M4F)", env!("CARGO_PKG_VERSION"));
     // Calibrate: a loop of exactly 2 instructions per turn (subs, bne).
     let t0 = ticks(&syst);
@@ -171,64 +165,8 @@ fn stack_top() -> usize {
     core::ptr::addr_of!(_stack_start) as usize
 }
 
-/// Bytes of stack ever used, as the board's main firmware reports it:
-/// cortex-m-rt painted `_stack_end.._stack_start` with `0xCCCC_CCCC` before
-/// `main`; the lowest overwritten word marks the deepest use.
-fn stack_high_water() -> (usize, usize) {
-    // SAFETY: only the symbols' addresses are taken; the words between them
-    // are plain RAM that cortex-m-rt painted, read with volatile reads.
-    #[allow(unsafe_code)]
-    unsafe {
-        let top = core::ptr::addr_of!(_stack_start) as usize;
-        let bottom = core::ptr::addr_of!(_stack_end) as usize;
-        let mut p = bottom;
-        while p < top && core::ptr::read_volatile(p as *const u32) == cortex_m_rt::STACK_PAINT_VALUE {
-            p += 4;
-        }
-        (top - p, top - bottom)
-    }
-}
-
 /// The i-th point of a 16 × 16 sweep over R 500…5500 mm × θ −45…45°.
 fn sweep(i: u32) -> EchoGeometry {
     let (a, b) = ((i % SIDE) as i32, (i / SIDE) as i32);
     EchoGeometry { range_mm: 500 + 333 * a as u32, theta_mdeg: -45_000 + 6_000 * b, delta_mdeg: 0 }
-}
-
-/// Exactly `2 * n` instructions (n ≥ 1): the calibration loop.
-fn spin(n: u32) {
-    // SAFETY: a register-only countdown loop; no memory is touched.
-    #[allow(unsafe_code)]
-    unsafe {
-        core::arch::asm!("1:", "subs {0}, {0}, #1", "bne 1b", inout(reg) n => _, options(nomem, nostack));
-    }
-}
-
-fn ticks(s: &Option<SYST>) -> u32 {
-    s.as_ref().map_or(0, |_| SYST::get_current())
-}
-
-/// SysTick counts down and wraps at 2^24.
-fn elapsed(start: u32, end: u32) -> u32 {
-    start.wrapping_sub(end) & 0x00FF_FFFF
-}
-
-fn exit(ok: bool) -> ! {
-    debug::exit(if ok { debug::EXIT_SUCCESS } else { debug::EXIT_FAILURE });
-    // Only reached when semihosting is off (no debugger): stop here.
-    loop {
-        cortex_m::asm::wfi();
-    }
-}
-
-#[exception]
-unsafe fn HardFault(ef: &ExceptionFrame) -> ! {
-    hprintln!("HardFault at pc {:#010x}", ef.pc());
-    exit(false)
-}
-
-#[panic_handler]
-fn panic(info: &core::panic::PanicInfo) -> ! {
-    hprintln!("panic: {}", info);
-    exit(false)
 }

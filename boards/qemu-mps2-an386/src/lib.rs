@@ -1,0 +1,98 @@
+//! What every echoloc binary on QEMU's `mps2-an386` shares: the SysTick cost
+//! counter and its calibration loop, the stack high-water mark, the
+//! semihosting exit, and the HardFault and panic handlers that turn a crash
+//! into a failing exit code (linked into every binary that uses this crate).
+#![no_std]
+
+use cortex_m::peripheral::{syst::SystClkSource, SYST};
+use cortex_m_rt::{exception, ExceptionFrame};
+use cortex_m_semihosting::{debug, hprintln};
+
+/// Starts SysTick as a free-running 24-bit down-counter at the core clock
+/// (25 MHz on this board): under the runner's `-icount shift=0` its counts
+/// are deterministic, and one tick is 40 instructions. `None` if the core
+/// peripherals were already taken (every reading is then 0).
+pub fn start_systick() -> Option<SYST> {
+    let mut syst = cortex_m::Peripherals::take().map(|p| p.SYST);
+    if let Some(s) = syst.as_mut() {
+        s.set_clock_source(SystClkSource::Core);
+        s.set_reload(0x00FF_FFFF);
+        s.clear_current();
+        s.enable_counter();
+    }
+    syst
+}
+
+/// The counter now.
+pub fn ticks(s: &Option<SYST>) -> u32 {
+    s.as_ref().map_or(0, |_| SYST::get_current())
+}
+
+/// Ticks from `start` to `end`: SysTick counts down and wraps at 2²⁴, so
+/// spans must stay below 0.67 s.
+pub fn elapsed(start: u32, end: u32) -> u32 {
+    start.wrapping_sub(end) & 0x00FF_FFFF
+}
+
+/// Exactly `2 * n` instructions (n ≥ 1): the calibration loop.
+pub fn spin(n: u32) {
+    // SAFETY: a register-only countdown loop; no memory is touched.
+    unsafe {
+        core::arch::asm!("1:", "subs {0}, {0}, #1", "bne 1b", inout(reg) n => _, options(nomem, nostack));
+    }
+}
+
+/// Integer square root (Newton).
+pub fn isqrt(v: u64) -> u64 {
+    let mut x = v;
+    let mut y = x.div_ceil(2);
+    while y < x {
+        x = y;
+        y = (x + v / x) / 2;
+    }
+    x
+}
+
+/// The stack's bounds `(top, bottom)`: cortex-m-rt's `_stack_start` and `_stack_end`.
+pub fn stack_bounds() -> (usize, usize) {
+    extern "C" {
+        static _stack_start: u32;
+        static _stack_end: u32;
+    }
+    // Only the symbols' addresses are taken: no unsafe needed.
+    (core::ptr::addr_of!(_stack_start) as usize, core::ptr::addr_of!(_stack_end) as usize)
+}
+
+/// Bytes of stack ever used, and the stack's size: cortex-m-rt painted
+/// `_stack_end.._stack_start` with `0xCCCC_CCCC` before `main` (feature
+/// `paint-stack`); the lowest overwritten word marks the deepest use.
+pub fn stack_high_water() -> (usize, usize) {
+    let (top, bottom) = stack_bounds();
+    let mut p = bottom;
+    // SAFETY: the words between the bounds are plain RAM, read with volatile reads.
+    while p < top && unsafe { core::ptr::read_volatile(p as *const u32) } == cortex_m_rt::STACK_PAINT_VALUE {
+        p += 4;
+    }
+    (top - p, top - bottom)
+}
+
+/// Leaves QEMU through semihosting: exit code 0 when `ok`, 1 otherwise.
+pub fn exit(ok: bool) -> ! {
+    debug::exit(if ok { debug::EXIT_SUCCESS } else { debug::EXIT_FAILURE });
+    // Only reached when semihosting is off (no debugger): stop here.
+    loop {
+        cortex_m::asm::wfi();
+    }
+}
+
+#[exception]
+unsafe fn HardFault(ef: &ExceptionFrame) -> ! {
+    hprintln!("HardFault at pc {:#010x}", ef.pc());
+    exit(false)
+}
+
+#[panic_handler]
+fn panic(info: &core::panic::PanicInfo) -> ! {
+    hprintln!("panic: {}", info);
+    exit(false)
+}
