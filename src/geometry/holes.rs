@@ -270,7 +270,15 @@ fn ring_id(r: usize) -> Ring {
 
 /// Whether `p` lies strictly inside the simple ring (winding number, exact).
 /// Points on the boundary are not inside.
-pub(super) fn strictly_inside(ring: &[Point], p: Point) -> bool {
+///
+/// ```
+/// use echoloc::geometry::{strictly_inside, Point};
+/// let sq = [Point::new(0, 0), Point::new(10, 0), Point::new(10, 10), Point::new(0, 10)];
+/// assert!(strictly_inside(&sq, Point::new(5, 5)));
+/// assert!(!strictly_inside(&sq, Point::new(10, 5)), "on the boundary");
+/// assert!(!strictly_inside(&sq, Point::new(11, 5)));
+/// ```
+pub fn strictly_inside(ring: &[Point], p: Point) -> bool {
     let n = ring.len();
     let mut wn = 0i32;
     for i in 0..n {

@@ -13,7 +13,7 @@ mod split;
 mod wide;
 
 pub use convex::{Convex, ConvexError, MAX_BUFFERED_VERTICES, MAX_PIECE_VERTICES};
-pub use holes::{split_convex_with_holes, HolesError, Ring};
+pub use holes::{split_convex_with_holes, strictly_inside, HolesError, Ring};
 pub use point::{Point, Rect, Segment, COORD_MAX};
 pub use predicates::{cross, dot, orient, point_on_segment, segments_intersect, Side};
 pub use split::{split_convex, SplitError};

@@ -15,7 +15,7 @@
 //! `2·tol` in x or y is dropped: every point of it lies within `tol` of its
 //! boundary, so the bound still holds.
 
-use echoloc::geometry::{orient, segments_intersect, Point};
+use echoloc::geometry::{orient, segments_intersect, strictly_inside, Point};
 
 use super::contour::area2_mm;
 
@@ -208,26 +208,6 @@ fn conflicts(rings: &[&[Point]], simple: &[Vec<usize>]) -> Vec<(usize, usize)> {
         active.push(i);
     }
     bad.into_iter().collect()
-}
-
-/// Whether `p` lies strictly inside the ring (winding number, exact).
-pub fn strictly_inside(ring: &[Point], p: Point) -> bool {
-    let n = ring.len();
-    let mut wn = 0i32;
-    for i in 0..n {
-        let (a, b) = (ring[i], ring[(i + 1) % n]);
-        if echoloc::geometry::point_on_segment(p, a, b) {
-            return false;
-        }
-        if a.y <= p.y {
-            if b.y > p.y && orient(a, b, p) > 0 {
-                wn += 1;
-            }
-        } else if b.y <= p.y && orient(a, b, p) < 0 {
-            wn -= 1;
-        }
-    }
-    wn != 0
 }
 
 #[cfg(test)]
