@@ -5,6 +5,14 @@ cd "$(dirname "$0")/.."
 bash scripts/setup.sh
 
 step() { printf '\n== %s\n' "$*"; }
+
+# Real data the tests read (DESIGN §9): the shared folder beside the repository.
+for f in ../shared/data/maps/depot.yaml ../shared/data/maps/tb3_sandbox.yaml ../shared/data/sonar/scitos-g5-ring24.csv; do
+  if [ ! -f "$f" ]; then
+    echo "missing $f: check out the project's shared/ folder beside this repository (CI has it there)" >&2
+    exit 1
+  fi
+done
 thumbs=(thumbv7em-none-eabihf thumbv6m-none-eabi)
 
 step "format"

@@ -94,6 +94,26 @@ fn empty_map_round_trips() {
 }
 
 #[test]
+fn an_unfinished_map_is_not_encoded() {
+    let mut m: Box<M> = Box::default();
+    let sq = [p(0, 0), p(10, 0), p(10, 10), p(0, 10)];
+    m.add_obstacle(ObstacleKind::Solid, &[&sq]).unwrap();
+    let mut b = vec![0u8; m.encoded_len()];
+    assert_eq!(m.encode(&mut b), Err(echoloc::map::EncodeError::NotFinished));
+}
+
+#[test]
+fn a_failed_push_leaves_a_finished_map_finished() {
+    let mut m: Map<8, 16, 16, 64> = Map::new();
+    let sq = [p(0, 0), p(10, 0), p(10, 10), p(0, 10)];
+    m.add_obstacle(ObstacleKind::Solid, &[&sq]).unwrap();
+    m.finish(0, 100).unwrap();
+    let big: Vec<Point> = (0..13).map(|k| p(k * 10, k * k)).collect();
+    assert!(m.push_piece(ObstacleKind::Solid, true, &big).is_err());
+    assert!(m.is_finished(), "a refused push changes nothing");
+}
+
+#[test]
 fn encode_into_a_short_buffer_is_refused() {
     let m = sample_map();
     let mut b = vec![0u8; m.encoded_len() - 1];
@@ -146,6 +166,26 @@ fn malformed_blob_table() {
                 reseal(b)
             },
             BlobError::ReservedByte { offset: OBST + 1 },
+        ),
+        (
+            "an empty obstacle at the end of the table",
+            |b| {
+                // One more obstacle (a wall with 0 pieces) after the three.
+                b.splice(PIECES..PIECES, [1u8, 0, 0, 0]);
+                b[COUNTS + 8] = 4;
+                reseal(b)
+            },
+            BlobError::EmptyObstacle { obstacle: 3 },
+        ),
+        (
+            "an empty obstacle in the middle, counts still adding up",
+            |b| {
+                // Obstacle 2 (the hexagon) empty, obstacle 1 (the wall) claiming its piece.
+                b[OBST + 4 + 2] = 3;
+                b[OBST + 4 * 2 + 2] = 0;
+                reseal(b)
+            },
+            BlobError::EmptyObstacle { obstacle: 2 },
         ),
         (
             "obstacle id out of range",

@@ -26,9 +26,9 @@ fn params() -> PredictParams {
     })
 }
 
-/// Crisp credence; the half-angle a hair wider than the window so points
-/// on its edge are credible whatever the float rounding of θ.
-const CRISP: Crisp = Crisp { half_angle_mdeg: 30_100, delta_max_mdeg: 15_000 };
+/// Crisp credence with the window's own θ_o: points clipped onto the cone
+/// edge must still count (`Crisp::EDGE_TOLERANCE_MDEG`).
+const CRISP: Crisp = Crisp { half_angle_mdeg: 30_000, delta_max_mdeg: 15_000 };
 
 fn map_of(walls: &[[Point; 2]], solids: &[&[Point]]) -> Box<M> {
     let mut m: Box<M> = Box::default();
@@ -200,7 +200,63 @@ fn r_min_cuts_out_the_near_part() {
     // R_min exactly.
     let m = map_of(&[[p(450, -3000), p(450, 3000)]], &[]);
     assert_eq!(run(&m, &CRISP), None);
-    let wide = Crisp { half_angle_mdeg: 30_100, delta_max_mdeg: 45_000 };
+    let wide = Crisp { half_angle_mdeg: 30_000, delta_max_mdeg: 45_000 };
     let r = run_wide(&m, &wide).unwrap();
     assert!(r.range_mm == 500 || r.range_mm == 501, "{}", r.range_mm);
+}
+
+#[test]
+fn crisp_predictions_on_the_cone_edge_match_the_geometric_range_at_every_heading() {
+    // A long wall 1.5 m to the side; for every heading 0…360° in 0.1° steps
+    // the nearest wall point in the wedge (what `--geometric` reports) must be
+    // what the crisp model predicts, whenever its δ is within δ_max = 60°
+    // (R ≤ 3000 mm). Clipped Case III points sit exactly on the cone edge.
+    use echoloc::predict::nearest_in_window;
+    let m = map_of(&[[p(-3000, 1500), p(6000, 1500)]], &[]);
+    let prm = PredictParams::new(WindowParams {
+        r_min_mm: 0,
+        r_max_mm: 5000,
+        half_angle_deg: 30.0,
+        delta_max_deg: 60.0,
+        ds_min_mm: 300,
+        tb_mm: 300,
+    });
+    let crisp = Crisp { half_angle_mdeg: 30_000, delta_max_mdeg: 60_000 };
+    let mut checked = 0;
+    for k in 0..3600 {
+        let h = (k as f32 / 10.0).to_radians();
+        let w = Window::place(&prm.window, p(0, 0), h).unwrap();
+        let Some(g) = nearest_in_window(&*m, &w).unwrap() else { continue };
+        if g.range_mm > 2990.0 {
+            continue;
+        }
+        let (r, _) = predict(&*m, &w, &prm, &crisp).unwrap();
+        let r = r.unwrap_or_else(|| {
+            panic!("heading {}°: nothing predicted, geometric {:.1} mm", k as f32 / 10.0, g.range_mm)
+        });
+        assert!(
+            (r.range_mm as f64 - g.range_mm).abs() <= 2.0,
+            "heading {}°: crisp {} mm, geometric {:.1} mm",
+            k as f32 / 10.0,
+            r.range_mm,
+            g.range_mm
+        );
+        checked += 1;
+    }
+    assert!(checked > 1000, "{checked} headings checked");
+}
+
+#[test]
+fn headings_of_many_turns_and_windows_beyond_the_coordinates() {
+    use echoloc::window::WindowError;
+    let m = map_of(&[[p(2000, -3000), p(2000, 3000)]], &[]);
+    let prm = params();
+    // 1e10 rad is many turns: reduced, it is a heading like any other, and
+    // the window's box (and so the query) ends.
+    let w = Window::place(&prm.window, p(0, 0), 1e10).unwrap();
+    assert!(w.sector.heading_rad >= 0.0 && w.sector.heading_rad < std::f32::consts::TAU);
+    let _ = predict(&*m, &w, &prm, &CRISP).unwrap();
+    // A window whose corner paths would leave ±COORD_MAX is refused, not wrapped.
+    let wide = WindowParams { r_max_mm: 100_000, half_angle_deg: 89.999, ds_min_mm: u32::MAX, tb_mm: 0, ..prm.window };
+    assert_eq!(Window::place(&wide, p(1000, 1000), 0.3).unwrap_err(), WindowError::BadRange);
 }

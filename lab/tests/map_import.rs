@@ -109,3 +109,25 @@ fn a_map_beyond_the_firmware_capacity_is_refused() {
     let text = format!(r#"{{"type":"FeatureCollection","features":[{}]}}"#, feats.join(","));
     import_fails("big.geojson", &text, "exceeds the firmware's capacity");
 }
+
+#[test]
+fn a_wall_with_a_repeated_first_position_is_its_own_obstacle() {
+    // Two walls; the second starts with a repeated position. It must import
+    // as a second obstacle, not fail and not merge into the first.
+    let input = tmp("walls.geojson");
+    std::fs::write(
+        &input,
+        r#"{"type":"FeatureCollection","features":[
+            {"type":"Feature","geometry":{"type":"LineString","coordinates":[[0,5],[3,5]]}},
+            {"type":"Feature","geometry":{"type":"LineString","coordinates":[[0,0],[0,0],[2,0]]}}]}"#,
+    )
+    .unwrap();
+    let out = tmp("walls.map");
+    let o = lab().args(["map", "import"]).arg(&input).arg("-o").arg(&out).output().unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let o = lab().args(["map", "info"]).arg(&out).output().unwrap();
+    let info: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(info["polygons"], 2, "two obstacles: {info}");
+    assert_eq!(info["convex_pieces"], 2);
+    import_fails("allsame.geojson", r#"{"type":"LineString","coordinates":[[1,1],[1,1],[1,1]]}"#, "has no segment");
+}

@@ -6,6 +6,11 @@ use super::{Credence, EchoGeometry, Kappa};
 
 /// κ = 1 when `|θ| ≤ θ_o` and `δ ≤ δ_max`, else 0.
 ///
+/// `θ_o` is met with a tolerance of [`Crisp::EDGE_TOLERANCE_MDEG`]: a window's
+/// cone edges are integer directions (resolution 1/16384 rad = 0.0035°), so a
+/// point clipped exactly onto the edge can measure a few thousandths of a
+/// degree beyond `θ_o` from the float axis; it is still in the window.
+///
 /// ```
 /// use echoloc::credence::{crisp::Crisp, Credence, EchoGeometry, Kappa};
 /// let c = Crisp { half_angle_mdeg: 15_000, delta_max_mdeg: 15_000 };
@@ -22,11 +27,15 @@ pub struct Crisp {
     pub delta_max_mdeg: i32,
 }
 
+impl Crisp {
+    /// How far past `θ_o` a point still counts as inside, millidegrees.
+    pub const EDGE_TOLERANCE_MDEG: u32 = 5;
+}
+
 impl Credence for Crisp {
     fn kappa(&self, echo: &EchoGeometry) -> Kappa {
-        if echo.theta_mdeg.unsigned_abs() <= self.half_angle_mdeg.unsigned_abs()
-            && echo.delta_mdeg <= self.delta_max_mdeg
-        {
+        let half = self.half_angle_mdeg.unsigned_abs().saturating_add(Self::EDGE_TOLERANCE_MDEG);
+        if echo.theta_mdeg.unsigned_abs() <= half && echo.delta_mdeg <= self.delta_max_mdeg {
             Kappa::ONE
         } else {
             Kappa::ZERO

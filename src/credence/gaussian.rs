@@ -31,7 +31,11 @@ pub struct GaussianLobe {
 
 impl Credence for GaussianLobe {
     fn kappa(&self, echo: &EchoGeometry) -> Kappa {
-        if echo.delta_mdeg > self.delta_max_mdeg || self.sigma_deg.is_nan() || self.sigma_deg <= 0.0 {
+        if echo.delta_mdeg > self.delta_max_mdeg
+            || self.sigma_deg.is_nan()
+            || self.sigma_deg <= 0.0
+            || !self.peak.is_finite()
+        {
             return Kappa::ZERO;
         }
         let t = echo.theta_mdeg as f32 / 1000.0 / self.sigma_deg;

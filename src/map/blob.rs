@@ -78,6 +78,11 @@ pub enum BlobError {
         /// The code found.
         code: u8,
     },
+    /// An obstacle with no pieces: nothing to detect, and a shifted table.
+    EmptyObstacle {
+        /// Obstacle index.
+        obstacle: u16,
+    },
     /// A piece names an obstacle that does not exist.
     ObstacleOutOfRange {
         /// Piece index.
@@ -120,6 +125,8 @@ pub enum EncodeError {
         /// Bytes needed.
         need: usize,
     },
+    /// The map is not finished: its buffer and cell size are not fixed yet.
+    NotFinished,
 }
 
 struct Reader<'a> {
@@ -166,6 +173,9 @@ impl<const PIECES: usize, const VERTS: usize, const CELLS: usize, const REFS: us
     /// Writes the map as a blob into `out`, returning the bytes written. The
     /// map must have been finished (its `buffer_mm` and cell size travel).
     pub fn encode(&self, out: &mut [u8]) -> Result<usize, EncodeError> {
+        if !self.finished {
+            return Err(EncodeError::NotFinished);
+        }
         let need = self.encoded_len();
         let out = out.get_mut(..need).ok_or(EncodeError::BufferTooSmall { need })?;
         let mut pos = BLOB_HEADER_LEN;
@@ -268,6 +278,10 @@ impl<const PIECES: usize, const VERTS: usize, const CELLS: usize, const REFS: us
             let count = r.u16()? as usize;
             if ObstacleKind::from_code(code).is_none() {
                 return Err(BlobError::UnknownKind { obstacle: o as u16, code });
+            }
+            if count == 0 {
+                // Anywhere in the table, even last where no piece would reach it.
+                return Err(BlobError::EmptyObstacle { obstacle: o as u16 });
             }
             sum_pieces += count;
         }

@@ -316,10 +316,11 @@ impl<const PIECES: usize, const VERTS: usize, const CELLS: usize, const REFS: us
         if self.pieces.len() == PIECES || (new_obstacle && self.obstacles.len() == PIECES) {
             return Err(MapError::Full(Capacity::Pieces));
         }
-        self.unfinish();
-        if self.verts.len() + p.len() > VERTS {
+        // Checked against the true vertices, before anything changes.
+        if self.true_verts + p.len() > VERTS {
             return Err(MapError::Full(Capacity::Vertices));
         }
+        self.unfinish();
         if new_obstacle {
             let first_piece = self.pieces.len() as u16;
             let _ = self.obstacles.push(Obstacle { kind, first_piece, piece_count: 0 });

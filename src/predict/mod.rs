@@ -278,7 +278,13 @@ fn search_edge<const P: usize, const V: usize, const C: usize, const R: usize, K
             if !include_start {
                 s = (s - ds).max(end);
             }
+            // A hard bound too: f32 steps on a very long edge could stall.
+            let mut steps = 0;
             loop {
+                steps += 1;
+                if steps > MAX_SUBSURFACE_STEPS + 1 {
+                    break;
+                }
                 let v = (ao.0 + s * e.0, ao.1 + s * e.1);
                 let range = libm::sqrtf(v.0 * v.0 + v.1 * v.1);
                 if best.is_some_and(|(r, _)| range >= r) {
@@ -307,7 +313,9 @@ fn search_edge<const P: usize, const V: usize, const C: usize, const R: usize, K
                         Case::III
                     };
                     let point = Point::new(ctx.o.x + libm::roundf(v.0) as i32, ctx.o.y + libm::roundf(v.1) as i32);
-                    let tol = params.tolerance_mm + echo.range_mm * params.tolerance_permille / 1000;
+                    let tol = (params.tolerance_mm as u64
+                        + echo.range_mm as u64 * params.tolerance_permille as u64 / 1000)
+                        .min(u32::MAX as u64) as u32;
                     *best = Some((
                         range,
                         Prediction {

@@ -60,8 +60,10 @@ impl Window {
         let layout = params.layout()?;
         let mut paths = Vec::new();
         for k in 0..layout.n_pp {
+            // End points reach R_max / cos θ_o: refuse a window that would leave the coordinate range.
+            let g = sector.to_map(layout.endpoint_x(k), params.r_max_mm as f32).ok_or(WindowError::BadRange)?;
             // n_pp ≤ MAX_PSEUDO_PATHS, checked by layout().
-            let _ = paths.push(sector.to_map(layout.endpoint_x(k), params.r_max_mm as f32));
+            let _ = paths.push(g);
         }
         Ok(Self { sector, paths, params: *params })
     }

@@ -85,6 +85,17 @@ impl Sector {
         if (apex.x as i64).abs() + reach > lim || (apex.y as i64).abs() + reach > lim {
             return Err(WindowError::BadRange);
         }
+        // Into [0, 2π): a heading of many turns would otherwise swallow the
+        // half-angle in f32 rounding (and the box below would never end).
+        let heading_rad = {
+            let r = libm::fmodf(heading_rad, core::f32::consts::TAU);
+            let r = if r < 0.0 { r + core::f32::consts::TAU } else { r };
+            if r >= core::f32::consts::TAU {
+                0.0
+            } else {
+                r
+            }
+        };
         Ok(Self {
             apex,
             heading_rad,
@@ -125,20 +136,30 @@ impl Sector {
         let (lo, hi) = (self.heading_rad - self.half_angle_rad, self.heading_rad + self.half_angle_rad);
         b = b.union_point(at(lo)).union_point(at(hi));
         // Axis-aligned extremes of the arc that fall inside the wedge.
+        // The heading is in [0, 2π) and θ_o < π/2: at most three quarter-turns lie inside.
         let mut k = libm::ceilf(lo / core::f32::consts::FRAC_PI_2);
-        while k * core::f32::consts::FRAC_PI_2 <= hi {
+        let mut n = 0;
+        while k * core::f32::consts::FRAC_PI_2 <= hi && n < 4 {
             b = b.union_point(at(k * core::f32::consts::FRAC_PI_2));
             k += 1.0;
+            n += 1;
         }
         Rect { min: Point::new(b.min.x - 1, b.min.y - 1), max: Point::new(b.max.x + 1, b.max.y + 1) }
     }
 
     /// The map point at sensor-frame coordinates `(x lateral, y along the
-    /// normal)`, rounded to the millimetre. Lateral `x` points to the right
-    /// of the heading.
-    pub fn to_map(&self, x: f32, y: f32) -> Point {
+    /// normal)`, rounded to the millimetre, or `None` beyond `±COORD_MAX`.
+    /// Lateral `x` points to the right of the heading.
+    pub fn to_map(&self, x: f32, y: f32) -> Option<Point> {
         let (c, s) = self.unit;
-        Point::new(self.apex.x + libm::roundf(x * s + y * c) as i32, self.apex.y + libm::roundf(-x * c + y * s) as i32)
+        let (dx, dy) = (libm::roundf(x * s + y * c), libm::roundf(-x * c + y * s));
+        // Finite and well inside i64 before converting; then range-checked.
+        if !(dx.abs() <= 4.0e9 && dy.abs() <= 4.0e9) {
+            return None;
+        }
+        let (px, py) = (self.apex.x as i64 + dx as i64, self.apex.y as i64 + dy as i64);
+        let lim = crate::geometry::COORD_MAX as i64;
+        (px.abs() <= lim && py.abs() <= lim).then(|| Point::new(px as i32, py as i32))
     }
 
     /// The unit vector of the axis (map frame).

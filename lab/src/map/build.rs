@@ -97,14 +97,21 @@ pub fn build_map(shapes: &[Shape], buffer_mm: u32, cell_mm: u32) -> Result<(Vec<
                 })?;
             }
             Shape::Wall(line) => {
+                // The first segment actually pushed starts the obstacle
+                // (a repeated first position is skipped, not merged away).
+                let mut first = true;
                 for (k, seg) in line.windows(2).enumerate() {
                     if seg[0] == seg[1] {
                         continue; // a repeated position is no segment
                     }
-                    map.push_piece(ObstacleKind::Wall, k == 0, seg).map_err(|e| match e {
+                    map.push_piece(ObstacleKind::Wall, first, seg).map_err(|e| match e {
                         MapError::Full(c) => capacity_error(shapes, c),
                         e => format!("shape {i}, segment {k}: {}", map_error(e)),
                     })?;
+                    first = false;
+                }
+                if first {
+                    return Err(format!("shape {i}: a wall whose positions are all the same has no segment"));
                 }
             }
         }

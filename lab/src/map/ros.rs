@@ -227,7 +227,8 @@ fn read_pgm(b: &[u8]) -> Result<Image, String> {
     }
     let n = width.checked_mul(height).filter(|&n| n <= 1 << 28).ok_or("PGM header: image too large")?;
     let scale = |v: usize| ((v * 255 + maxval / 2) / maxval) as u8;
-    let mut value = Vec::with_capacity(n);
+    // Reserve no more than the file could hold: a lying header must not make us allocate.
+    let mut value = Vec::with_capacity(n.min(b.len()));
     if ascii {
         for i in 0..n {
             let v =
@@ -243,6 +244,9 @@ fn read_pgm(b: &[u8]) -> Result<Image, String> {
         let data = b
             .get(pos..pos + n)
             .ok_or_else(|| format!("P5 data: {} bytes, expected {n}", b.len().saturating_sub(pos)))?;
+        if let Some(i) = data.iter().position(|&v| v as usize > maxval) {
+            return Err(format!("P5 data: pixel {i} = {} exceeds maxval {maxval}", data[i]));
+        }
         value.extend(data.iter().map(|&v| scale(v as usize)));
     }
     Ok(Image { width, height, value, alpha: None })
