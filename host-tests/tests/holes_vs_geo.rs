@@ -17,8 +17,12 @@ fn area2(p: &[Point]) -> i128 {
     (1..p.len() - 1).map(|i| orient(p[0], p[i], p[i + 1]) as i128).sum()
 }
 
+/// The ring as a closed line string (first point repeated at the end), so
+/// that its closing edge counts in `intersects`.
 fn ring_ls(r: &[Point]) -> LineString<f64> {
-    LineString::from(r.iter().map(|&p| coord(p)).collect::<Vec<_>>())
+    let mut ls = LineString::from(r.iter().map(|&p| coord(p)).collect::<Vec<_>>());
+    ls.close();
+    ls
 }
 
 /// Whether `geo` calls this a valid polygon with holes in our sense: every
