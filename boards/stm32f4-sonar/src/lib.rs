@@ -1,0 +1,342 @@
+//! What the STM32F429 sonar controller is made of: the wiring, the 1 MHz
+//! clock the driver runs on, the checked ring timing, one transducer's
+//! prediction, the comparison of a reading with it, and the fault and panic
+//! handlers. `main.rs` puts them together.
+//!
+//! # The board
+//!
+//! An STM32F429ZI (Cortex-M4F, 2 MiB flash, 192 KiB SRAM), as on a
+//! NUCLEO-F429ZI: HSE is the ST-LINK's 8 MHz clock output (bypass mode), the
+//! core runs at 168 MHz, APB1 at 42 MHz, so TIM2–TIM5 count at 84 MHz before
+//! their prescaler. One Polaroid 6500-class ranging module fires a 16-transducer
+//! ring through a 1-of-16 analogue multiplexer (the Pioneer ring,
+//! [`PIONEER16`]):
+//!
+//! | signal | pin | notes |
+//! |---|---|---|
+//! | INIT | PE6, push-pull output | through the module's level shifter; high fires a ping |
+//! | BINH | PE7, push-pull output | ends blanking early (raised 1 ms after INIT: nearest range 172 mm) |
+//! | ECHO | PA0, input | open collector with an external pull-up to 3.3 V; PA0 is also TIM5_CH1, so a later revision can capture the edge on the clock's own timer and call `Ring::echo_captured` instead of polling |
+//! | A0..A3 | PE2, PE3, PE4, PE5, push-pull outputs | multiplexer address, `A0` is bit 0 of the transducer index |
+//! | clock | TIM5 | 32 bits, prescaled to 1 MHz, free-running over the whole 2³² µs ([`Tim5Clock`]) |
+//! | LD1 (green) | PB0 | on after a ring cycle in which at least half the judged readings confirmed the map |
+//! | LD3 (red) | PB14 | on after a ring cycle that saw an unknown obstacle |
+//!
+//! Every GPIO of the STM32F4 HAL has the error type `Infallible`, so the
+//! driver's pin errors cannot happen here. The address lines are turned into
+//! one type by erasing their pin numbers ([`Addr`]), as the driver asks.
+//!
+//! # Memory
+//!
+//! The `StandardMap` lives in a static (`.bss`, 178 228 bytes), filled in
+//! place from the office map blob, which stays in flash. cortex-m-rt puts the
+//! stack at the top of the 192 KiB and lets it grow down towards `.bss`: it
+//! gets the remaining 18 376 bytes. The deepest path, one transducer's
+//! prediction ([`expect`]) called from the main loop, needs about 9 KiB (by
+//! the frames in the disassembly: about 1 KiB for the main loop, 7 KiB for
+//! `expect` with the prediction inlined into it, under 1 KiB below; the QEMU
+//! board measures 8 936 bytes for a whole ring prediction), so about 9 KiB
+//! is spare. Nothing would catch an
+//! overflow into the map; moving the stack into the 64 KiB of core-coupled
+//! RAM (see `memory.x`) would give it room and make an overflow fault.
+#![no_std]
+#![deny(unsafe_code)]
+#![deny(missing_docs)]
+
+use core::sync::atomic::{AtomicU32, Ordering};
+
+use cortex_m_rt::{exception, ExceptionFrame};
+use echoloc::credence::net::CredenceNet;
+use echoloc::credence::Kappa;
+use echoloc::driver::{Eeruf, ModuleConfig, Outcome, Ring, RingConfig, RingTiming, SpeedOfSound, Timing};
+use echoloc::map::StandardMap;
+use echoloc::predict::{place_sensor, predict, Pose, PredictError, PredictParams, Prediction, PIONEER16};
+use echoloc::window::{Window, WindowParams};
+use stm32f4xx_hal::gpio::{self, Input, Output, PushPull};
+use stm32f4xx_hal::pac::TIM5;
+use stm32f4xx_hal::rcc::Rcc;
+use stm32f4xx_hal::timer::FTimer;
+
+pub use echoloc::driver::Clock;
+
+/// Transducers on the ring.
+pub const TRANSDUCERS: usize = 16;
+/// Multiplexer address lines: `2^4 = 16` transducers.
+pub const ADDRESS_LINES: usize = 4;
+
+/// INIT: PE6.
+pub type Init = gpio::PE6<Output<PushPull>>;
+/// BINH: PE7.
+pub type Binh = gpio::PE7<Output<PushPull>>;
+/// ECHO: PA0 (TIM5_CH1).
+pub type Echo = gpio::PA0<Input>;
+/// One multiplexer address line: PE2..PE5 with the pin number erased.
+pub type Addr = gpio::gpioe::PEn<Output<PushPull>>;
+/// The sonar ring of this board, on a shared reference to its clock.
+pub type SonarRing<'c> = Ring<Init, Echo, Binh, Addr, &'c Tim5Clock, ADDRESS_LINES, TRANSDUCERS>;
+
+/// Speed of sound: 20.00 °C (a robot with a thermometer would recompute the
+/// timing from it).
+pub const SOUND: SpeedOfSound = match SpeedOfSound::at_centi_celsius(2000) {
+    Ok(s) => s,
+    Err(_) => panic!("20 C is a valid temperature"),
+};
+
+/// The ranging module: a Polaroid 6500 listening to 5.5 m, with BINH raised
+/// 1 ms after INIT. Checked when the firmware is compiled.
+pub const MODULE_TIMING: Timing =
+    match (ModuleConfig { binh_after_us: Some(1_000), ..ModuleConfig::polaroid_6500(SOUND) }).timing() {
+        Ok(t) => t,
+        Err(_) => panic!("the module configuration is refused"),
+    };
+
+/// The ring: a 5 ms ring-down gap after every listening window, EERUF with a
+/// 1 ms step and a 50 mm tolerance. Checked when the firmware is compiled.
+pub const RING_TIMING: RingTiming<TRANSDUCERS> =
+    match (RingConfig { ring_down_us: 5_000, eeruf: Some(Eeruf { alternating_us: 1_000, tolerance_mm: 50 }) })
+        .timing::<TRANSDUCERS>(&MODULE_TIMING)
+    {
+        Ok(t) => t,
+        Err(_) => panic!("the ring configuration is refused"),
+    };
+
+/// A free-running microsecond counter on TIM5 (32 bits): the driver's
+/// [`Clock`].
+///
+/// The HAL enables and resets TIM5 and sets its prescaler for 1 MHz from the
+/// APB1 timer clock; the auto-reload is then the whole 32-bit range, so the
+/// count wraps at 2³² µs exactly as [`Clock`] asks (the HAL's own `Counter`
+/// cannot: it reloads at `ticks - 1`, which would wrap at 2³² − 1).
+#[derive(Debug)]
+pub struct Tim5Clock {
+    tim: TIM5,
+}
+
+impl Tim5Clock {
+    /// Starts TIM5 counting microseconds from 0. The timer clock must be a
+    /// whole number of MHz (the HAL asserts it).
+    pub fn start(tim: TIM5, rcc: &mut Rcc) -> Self {
+        let tim = FTimer::<TIM5, 1_000_000>::new(tim, rcc).release();
+        tim.arr().write(|w| w.arr().set(u32::MAX));
+        // The prescaler is buffered: an update event loads it (and zeroes
+        // the count) before the counter starts.
+        tim.egr().write(|w| w.ug().set_bit());
+        tim.cr1().modify(|_, w| w.cen().set_bit());
+        Self { tim }
+    }
+}
+
+impl Clock for Tim5Clock {
+    fn now_us(&self) -> u32 {
+        self.tim.cnt().read().cnt().bits()
+    }
+}
+
+/// Below this credence a predicted echo that does not come back is no
+/// evidence against the map (κ = 0.75).
+pub const KAPPA_HIGH: Kappa = Kappa::from_bits(3 << 13);
+
+/// The window and prediction settings for a map buffered by `tb_mm`: MARGE's
+/// window (`R_max` 5.5 m, as the module listens), exact beacon collection,
+/// τ_κ = 0.5, the Polaroid's 30 mm + 1 % tolerance.
+pub fn predict_params(tb_mm: u32) -> PredictParams {
+    PredictParams::new(WindowParams { tb_mm, ..WindowParams::MARGE })
+}
+
+/// What one transducer should read from one pose.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Expected {
+    /// Not predicted (yet), or the prediction failed: the reading cannot be judged.
+    Unknown,
+    /// No credible echo within range.
+    Nothing,
+    /// This echo.
+    Echo(Prediction),
+}
+
+/// Predicts transducer `transducer` of the Pioneer ring from `pose`. About a
+/// sixteenth of a ring prediction: it runs in the ring-down gap before that
+/// transducer fires.
+pub fn expect(
+    map: &StandardMap,
+    pose: &Pose,
+    transducer: u8,
+    params: &PredictParams,
+    net: &CredenceNet<'_>,
+) -> Result<Expected, PredictError> {
+    let Some(mount) = PIONEER16.get(usize::from(transducer)) else {
+        return Ok(Expected::Unknown);
+    };
+    let (apex, heading) = place_sensor(pose, mount);
+    let window = Window::place(&params.window, apex, heading).map_err(PredictError::Window)?;
+    let (p, _) = predict(map, &window, params, net)?;
+    Ok(p.map_or(Expected::Nothing, Expected::Echo))
+}
+
+/// How one reading compares with its prediction.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Verdict {
+    /// The echo is where the map says, within the prediction's tolerance.
+    Confirmed {
+        /// Observed range, mm.
+        range_mm: u32,
+        /// Predicted range, mm.
+        predicted_mm: u32,
+    },
+    /// An echo nearer than anything the map predicts (or where it predicts
+    /// nothing): an obstacle the map does not hold.
+    UnknownObstacle {
+        /// Observed range, mm.
+        range_mm: u32,
+        /// Predicted range, mm, if anything was predicted.
+        predicted_mm: Option<u32>,
+    },
+    /// An echo beyond the predicted surface: the surface did not answer, or
+    /// the pose is off.
+    Farther {
+        /// Observed range, mm.
+        range_mm: u32,
+        /// Predicted range, mm.
+        predicted_mm: u32,
+    },
+    /// No echo where one was predicted with κ ≥ [`KAPPA_HIGH`]: the surface
+    /// is gone, or the pose is off.
+    Missed {
+        /// Predicted range, mm.
+        predicted_mm: u32,
+        /// Its credence, as bits of the Q1.15 κ.
+        kappa_bits: u16,
+    },
+    /// No echo where the predicted echo had κ below [`KAPPA_HIGH`]: the
+    /// sonar may or may not have seen it, so it says nothing.
+    Weak {
+        /// Predicted range, mm.
+        predicted_mm: u32,
+    },
+    /// No echo, and nothing was predicted: the cone is as empty as the map
+    /// says.
+    NothingPredicted,
+    /// Not judged: the echo was not accepted by EERUF (unconfirmed,
+    /// crosstalk), untimed or a fault; or the prediction is missing, or lies
+    /// nearer than the module can range.
+    NotJudged,
+}
+
+/// Compares one ring outcome with what was expected for that transducer.
+/// Only echoes EERUF accepted ([`Outcome::Range`]) and clean no-echoes are
+/// judged.
+pub fn judge(outcome: &Outcome, expected: &Expected) -> Verdict {
+    let p = match expected {
+        Expected::Unknown => return Verdict::NotJudged,
+        Expected::Echo(p) if p.range_mm < MODULE_TIMING.min_range_mm() => return Verdict::NotJudged,
+        Expected::Echo(p) => Some(p),
+        Expected::Nothing => None,
+    };
+    match (outcome, p) {
+        (&Outcome::Range { range_mm, .. }, None) => Verdict::UnknownObstacle { range_mm, predicted_mm: None },
+        (&Outcome::Range { range_mm, .. }, Some(p)) => {
+            let predicted_mm = p.range_mm;
+            if range_mm.abs_diff(predicted_mm) <= p.tolerance_mm {
+                Verdict::Confirmed { range_mm, predicted_mm }
+            } else if range_mm < predicted_mm {
+                Verdict::UnknownObstacle { range_mm, predicted_mm: Some(predicted_mm) }
+            } else {
+                Verdict::Farther { range_mm, predicted_mm }
+            }
+        }
+        (Outcome::NoEcho, None) => Verdict::NothingPredicted,
+        (Outcome::NoEcho, Some(p)) if p.kappa >= KAPPA_HIGH => {
+            Verdict::Missed { predicted_mm: p.range_mm, kappa_bits: p.kappa.to_bits() }
+        }
+        (Outcome::NoEcho, Some(p)) => Verdict::Weak { predicted_mm: p.range_mm },
+        _ => Verdict::NotJudged,
+    }
+}
+
+/// Verdicts counted over one ring cycle.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct CycleTally {
+    /// [`Verdict::Confirmed`].
+    pub confirmed: u8,
+    /// [`Verdict::UnknownObstacle`].
+    pub unknown_obstacle: u8,
+    /// [`Verdict::Farther`].
+    pub farther: u8,
+    /// [`Verdict::Missed`].
+    pub missed: u8,
+    /// [`Verdict::Weak`].
+    pub weak: u8,
+    /// [`Verdict::NothingPredicted`].
+    pub nothing_predicted: u8,
+    /// [`Verdict::NotJudged`].
+    pub not_judged: u8,
+    /// The latest firing in the cycle, µs after its slot time. Above
+    /// [`RingTiming::late_limit_us`] the loop (a prediction) overran the
+    /// ring-down gap and the schedule re-anchored.
+    pub worst_late_us: u32,
+}
+
+impl CycleTally {
+    /// Counts one verdict and the lateness of its firing.
+    pub fn add(&mut self, v: &Verdict, late_us: u32) {
+        let n = match v {
+            Verdict::Confirmed { .. } => &mut self.confirmed,
+            Verdict::UnknownObstacle { .. } => &mut self.unknown_obstacle,
+            Verdict::Farther { .. } => &mut self.farther,
+            Verdict::Missed { .. } => &mut self.missed,
+            Verdict::Weak { .. } => &mut self.weak,
+            Verdict::NothingPredicted => &mut self.nothing_predicted,
+            Verdict::NotJudged => &mut self.not_judged,
+        };
+        *n = n.saturating_add(1);
+        self.worst_late_us = self.worst_late_us.max(late_us);
+    }
+
+    /// Readings judged against the map (all but [`Verdict::NotJudged`] and
+    /// [`Verdict::Weak`]).
+    pub fn judged(&self) -> u8 {
+        self.confirmed + self.unknown_obstacle + self.farther + self.missed + self.nothing_predicted
+    }
+
+    /// At least half the judged readings agreed with the map (and some were
+    /// judged).
+    pub fn map_agrees(&self) -> bool {
+        let agree = u16::from(self.confirmed) + u16::from(self.nothing_predicted);
+        self.judged() > 0 && 2 * agree >= u16::from(self.judged())
+    }
+}
+
+/// The network the firmware rates predictions with: the shipped quantised
+/// 2-10-1 net.
+pub const fn credence() -> CredenceNet<'static> {
+    CredenceNet::shipped()
+}
+
+/// The program counter of the last HardFault, for a debugger (0: none).
+pub static HARDFAULT_PC: AtomicU32 = AtomicU32::new(0);
+
+// SAFETY: cortex-m-rt requires the HardFault handler to be an `unsafe fn`; it
+// only stores the stacked PC into an atomic and then parks the core, touching
+// no other state.
+#[allow(unsafe_code)]
+#[exception]
+unsafe fn HardFault(ef: &ExceptionFrame) -> ! {
+    HARDFAULT_PC.store(ef.pc(), Ordering::Relaxed);
+    park()
+}
+
+/// A panic parks the core with interrupts off. The ranging module is left as
+/// it was: a 6500 sends one burst per rising INIT, so an INIT left high sends
+/// nothing more. A watchdog (not enabled here) would restart the controller.
+#[panic_handler]
+fn panic(_info: &core::panic::PanicInfo) -> ! {
+    park()
+}
+
+/// Interrupts off, then sleep for ever.
+fn park() -> ! {
+    cortex_m::interrupt::disable();
+    loop {
+        cortex_m::asm::wfi();
+    }
+}
