@@ -25,6 +25,7 @@ for t in "${thumbs[@]}"; do
   cargo clippy -q -p echoloc --target "$t" --features defmt -- -D warnings
 done
 cargo clippy -q -p qemu-mps2-an386 --target thumbv7em-none-eabihf -- -D warnings
+cargo clippy -q -p stm32f4-sonar --target thumbv7em-none-eabihf -- -D warnings
 
 step "core builds for the thumb targets"
 for t in "${thumbs[@]}"; do
@@ -34,6 +35,7 @@ done
 
 step "boards build"
 cargo build -q -p qemu-mps2-an386 --target thumbv7em-none-eabihf --release
+cargo build -q -p stm32f4-sonar --target thumbv7em-none-eabihf --release
 
 step "host tests (unit, integration, property, doc)"
 cargo test -q --workspace 2>&1 | tee target/host-tests.log
@@ -69,7 +71,7 @@ done
 
 step "docs"
 RUSTDOCFLAGS="-D warnings" cargo doc -q --no-deps
-RUSTDOCFLAGS="-D warnings" cargo doc -q --no-deps -p qemu-mps2-an386 --target thumbv7em-none-eabihf
+RUSTDOCFLAGS="-D warnings" cargo doc -q --no-deps -p qemu-mps2-an386 -p stm32f4-sonar --target thumbv7em-none-eabihf
 
 echo
 echo "all checks passed"
