@@ -5,6 +5,7 @@
 //! differences fits in an `i64` without overflow. All *decisions* (which side,
 //! whether two things meet) are made with these exact integers.
 
+mod clip;
 mod convex;
 mod holes;
 mod point;
@@ -12,6 +13,7 @@ mod predicates;
 mod split;
 mod wide;
 
+pub(crate) use clip::{Frac, ParamRange};
 pub use convex::{Convex, ConvexError, MAX_BUFFERED_VERTICES, MAX_PIECE_VERTICES};
 pub use holes::{split_convex_with_holes, strictly_inside, HolesError, Ring};
 pub use point::{Point, Rect, Segment, COORD_MAX};

@@ -196,11 +196,8 @@ pub fn predict<const P: usize, const V: usize, const C: usize, const R: usize, K
                 continue;
             }
             let (a, b) = shape.edge(edge);
-            if !sector.edge_meets(a, b) {
-                continue;
-            }
+            let Some((lo, hi)) = sector.edge_window(a, b) else { continue };
             stats.edges += 1;
-            let Some((lo, hi)) = sector.clip_edge_f32(a, b) else { continue };
             let ctx = EdgeCtx { o, a, b, axis, piece: id, obstacle: piece.obstacle, edge: edge as u8 };
             search_edge(map, &ctx, lo, hi, sector.r_min_mm, sector.r_max_mm, params, credence, &mut best, &mut stats);
         }

@@ -30,7 +30,7 @@
 //! assert!(!piece.hits_segment(Point::new(20, 5), Point::new(20, 50)));
 //! ```
 
-use crate::geometry::{cross, dot, Convex, Point, Segment};
+use crate::geometry::{cross, dot, Convex, ParamRange, Point, Segment};
 
 /// The edge-side bit mask of a point against one convex piece.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
@@ -160,38 +160,13 @@ impl Convex<'_> {
     /// misses (Cyrus–Beck clipping with rational parameters).
     pub fn entry(&self, seg: Segment) -> Option<Entry> {
         let d = seg.b.sub(seg.a);
-        // Running [lo, hi] as fractions lo_n/lo_d, hi_n/hi_d (denominators > 0).
-        let (mut lo_n, mut lo_d) = (0i128, 1i128);
-        let (mut hi_n, mut hi_d) = (1i128, 1i128);
-        let mut clip = |c0: i64, c1: i64| -> bool {
-            // Constraint c0 + s*c1 >= 0.
-            let (c0, c1) = (c0 as i128, c1 as i128);
-            if c1 == 0 {
-                return c0 >= 0;
-            }
-            if c1 > 0 {
-                // s >= -c0/c1
-                let (n, dd) = (-c0, c1);
-                if n * lo_d > lo_n * dd {
-                    lo_n = n;
-                    lo_d = dd;
-                }
-            } else {
-                // s <= c0/(-c1)
-                let (n, dd) = (c0, -c1);
-                if n * hi_d < hi_n * dd {
-                    hi_n = n;
-                    hi_d = dd;
-                }
-            }
-            lo_n * hi_d <= hi_n * lo_d
-        };
+        let mut r = ParamRange::UNIT;
         let v = self.vertices();
         let n = v.len();
         for i in 0..n {
             let (p, q) = (v[i], v[(i + 1) % n]);
             let e = q.sub(p);
-            if !clip(cross(e, seg.a.sub(p)), cross(e, d)) {
+            if !r.cut(cross(e, seg.a.sub(p)), cross(e, d)) {
                 return None;
             }
         }
@@ -199,11 +174,12 @@ impl Convex<'_> {
             let (a, b) = (v[0], v[1]);
             let ab = b.sub(a);
             let ba = a.sub(b);
-            if !clip(dot(seg.a.sub(a), ab), dot(d, ab)) || !clip(dot(seg.a.sub(b), ba), dot(d, ba)) {
+            if !r.cut(dot(seg.a.sub(a), ab), dot(d, ab)) || !r.cut(dot(seg.a.sub(b), ba), dot(d, ba)) {
                 return None;
             }
         }
-        // Reduce to i64: lo_n/lo_d ∈ [0, 1] with lo_d = |c1| < 2^63.
+        // Reduce to i64: lo ∈ [0, 1] with its denominator |c1| < 2^63.
+        let (lo_n, lo_d) = (r.lo.num, r.lo.den);
         let g = gcd(lo_n.unsigned_abs(), lo_d.unsigned_abs()).max(1) as i128;
         Some(Entry { num: (lo_n / g) as i64, den: (lo_d / g) as i64 })
     }

@@ -7,37 +7,12 @@
 //! clipped points compared in 256 bits ([`U256`]). Floats only place the
 //! window (trigonometry of the heading) and report positions.
 
-use crate::geometry::{cross, dot, Convex, Point, Rect, U256};
+use crate::geometry::{cross, dot, Convex, Frac, ParamRange, Point, Rect, U256};
 
 use super::WindowError;
 
 /// Length of the integer direction vectors.
 const DIR_SCALE: f32 = 16384.0;
-
-/// A rational parameter `num / den` along an edge, `den > 0`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-struct Frac {
-    num: i128,
-    den: i128,
-}
-
-impl Frac {
-    const ZERO: Frac = Frac { num: 0, den: 1 };
-    const ONE: Frac = Frac { num: 1, den: 1 };
-    fn lt(self, o: Frac) -> bool {
-        self.num * o.den < o.num * self.den
-    }
-    fn to_f64(self) -> f64 {
-        self.num as f64 / self.den as f64
-    }
-}
-
-/// The part `[lo, hi]` of an edge `a + s·e`, `s ∈ [0, 1]`, inside the wedge.
-#[derive(Clone, Copy, Debug)]
-pub(crate) struct Clip {
-    lo: Frac,
-    hi: Frac,
-}
 
 /// A sensor window in the map frame.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -168,33 +143,13 @@ impl Sector {
     }
 
     /// Clips edge `a → b` to the wedge (not yet to the ranges).
-    pub(crate) fn clip_edge(&self, a: Point, b: Point) -> Option<Clip> {
+    pub(crate) fn clip_edge(&self, a: Point, b: Point) -> Option<ParamRange> {
         let ao = a.sub(self.apex);
         let e = b.sub(a);
-        let (mut lo, mut hi) = (Frac::ZERO, Frac::ONE);
-        // Constraints c0 + s·c1 ≥ 0.
-        for (c0, c1) in [(cross(self.right, ao), cross(self.right, e)), (cross(ao, self.left), cross(e, self.left))] {
-            let (c0, c1) = (c0 as i128, c1 as i128);
-            if c1 == 0 {
-                if c0 < 0 {
-                    return None;
-                }
-            } else if c1 > 0 {
-                let f = Frac { num: -c0, den: c1 };
-                if lo.lt(f) {
-                    lo = f;
-                }
-            } else {
-                let f = Frac { num: c0, den: -c1 };
-                if f.lt(hi) {
-                    hi = f;
-                }
-            }
-        }
-        if hi.lt(lo) {
-            return None;
-        }
-        Some(Clip { lo, hi })
+        let mut r = ParamRange::UNIT;
+        let inside =
+            r.cut(cross(self.right, ao), cross(self.right, e)) && r.cut(cross(ao, self.left), cross(e, self.left));
+        inside.then_some(r)
     }
 
     /// Compares the distance from the apex of the point `a + s·e` with `r`:
@@ -215,17 +170,22 @@ impl Sector {
 
     /// Exact: does the closed edge `a → b` contain a point of the sector?
     pub fn edge_meets(&self, a: Point, b: Point) -> bool {
-        let Some(c) = self.clip_edge(a, b) else {
-            return false;
-        };
+        self.edge_window(a, b).is_some()
+    }
+
+    /// Exact: if the closed edge `a → b` contains a point of the sector, the
+    /// part `[lo, hi]` of it inside the wedge, as parameters along the edge
+    /// (not yet cut to the ranges); `None` if the edge misses the sector.
+    pub fn edge_window(&self, a: Point, b: Point) -> Option<(f32, f32)> {
+        let c = self.clip_edge(a, b)?;
         let e = b.sub(a);
-        // Far end: the farther clipped end must reach R_min.
+        // The farther clipped end must reach R_min, the nearest point R_max.
         let far_ok = self.at_least(a, e, c.lo, self.r_min_mm) || self.at_least(a, e, c.hi, self.r_min_mm);
-        far_ok && self.nearest_within(a, e, c, self.r_max_mm)
+        (far_ok && self.nearest_within(a, e, c, self.r_max_mm)).then(|| (c.lo.to_f64() as f32, c.hi.to_f64() as f32))
     }
 
     /// Whether the clipped edge's nearest point to the apex is within `r`.
-    fn nearest_within(&self, a: Point, e: (i64, i64), c: Clip, r: u32) -> bool {
+    fn nearest_within(&self, a: Point, e: (i64, i64), c: ParamRange, r: u32) -> bool {
         let oa = self.apex.sub(a);
         let ee = dot(e, e) as i128;
         if ee == 0 {
@@ -285,10 +245,13 @@ impl Sector {
             return Some((0.0, o));
         }
         let mut best: Option<(f64, (f64, f64))> = None;
+        // Exact decision on R_max (the f64 distance only reports it).
+        let mut within = false;
         for i in 0..piece.edge_count() {
             let (a, b) = piece.edge(i);
             let Some(c) = self.clip_edge(a, b) else { continue };
             let e = b.sub(a);
+            within = within || self.nearest_within(a, e, c, self.r_max_mm);
             let ee = dot(e, e) as f64;
             let oa = self.apex.sub(a);
             let (lo, hi) = (c.lo.to_f64(), c.hi.to_f64());
@@ -299,21 +262,7 @@ impl Sector {
                 best = Some((d, p));
             }
         }
-        // Exact decision on R_max (the f64 distance only reports it).
-        let inside = (0..piece.edge_count()).any(|i| {
-            let (a, b) = piece.edge(i);
-            self.clip_edge(a, b).is_some_and(|c| self.nearest_within(a, b.sub(a), c, self.r_max_mm))
-        });
-        if inside {
-            best
-        } else {
-            None
-        }
-    }
-
-    /// The wedge part `[lo, hi]` of edge `a → b` as `f32` parameters, if any.
-    pub(crate) fn clip_edge_f32(&self, a: Point, b: Point) -> Option<(f32, f32)> {
-        self.clip_edge(a, b).map(|c| (c.lo.to_f64() as f32, c.hi.to_f64() as f32))
+        best.filter(|_| within)
     }
 }
 

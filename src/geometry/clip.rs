@@ -1,0 +1,80 @@
+//! A parameter range `[lo, hi] ⊆ [0, 1]` along a segment `a + s·(b − a)`,
+//! cut by linear constraints `c0 + s·c1 ≥ 0` and kept as exact fractions:
+//! the Cyrus–Beck clipping that both a piece's entry point
+//! (`Convex::entry`) and a window's edge clipping (`Sector`) use.
+
+/// An exact fraction `num / den`, `den > 0`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct Frac {
+    pub num: i128,
+    pub den: i128,
+}
+
+impl Frac {
+    pub const ZERO: Frac = Frac { num: 0, den: 1 };
+    pub const ONE: Frac = Frac { num: 1, den: 1 };
+
+    /// `self < o`, exactly (both denominators positive).
+    pub fn lt(self, o: Frac) -> bool {
+        self.num * o.den < o.num * self.den
+    }
+
+    pub fn to_f64(self) -> f64 {
+        self.num as f64 / self.den as f64
+    }
+}
+
+/// The part of `[0, 1]` that every constraint so far allows.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct ParamRange {
+    pub lo: Frac,
+    pub hi: Frac,
+}
+
+impl ParamRange {
+    /// The whole segment.
+    pub const UNIT: ParamRange = ParamRange { lo: Frac::ZERO, hi: Frac::ONE };
+
+    /// Cuts the range by `c0 + s·c1 ≥ 0`; `false` once it is empty.
+    /// Exact while `|c0|, |c1| < 2⁶³` (every product below 2¹²⁶).
+    pub fn cut(&mut self, c0: i64, c1: i64) -> bool {
+        let (c0, c1) = (c0 as i128, c1 as i128);
+        if c1 == 0 {
+            if c0 < 0 {
+                self.hi = Frac { num: -1, den: 1 }; // empty for good
+            }
+        } else if c1 > 0 {
+            // s ≥ −c0/c1
+            let f = Frac { num: -c0, den: c1 };
+            if self.lo.lt(f) {
+                self.lo = f;
+            }
+        } else {
+            // s ≤ c0/(−c1)
+            let f = Frac { num: c0, den: -c1 };
+            if f.lt(self.hi) {
+                self.hi = f;
+            }
+        }
+        !self.hi.lt(self.lo)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn cuts_narrow_exactly_and_empty_stays_empty() {
+        let mut r = ParamRange::UNIT;
+        assert!(r.cut(-1, 4)); // s ≥ 1/4
+        assert!(r.cut(3, -4)); // s ≤ 3/4
+        assert_eq!((r.lo, r.hi), (Frac { num: 1, den: 4 }, Frac { num: 3, den: 4 }));
+        assert!(r.cut(-1, 2)); // s ≥ 1/2
+        assert!(r.cut(5, 0), "a constraint that always holds");
+        assert!(!r.cut(-1, 0), "a constraint that never holds");
+        assert!(!r.cut(0, 1), "empty stays empty");
+        let mut r = ParamRange::UNIT;
+        assert!(!r.cut(-3, 2), "s ≥ 3/2 leaves nothing of [0, 1]");
+    }
+}
