@@ -138,8 +138,24 @@ struct PieceRec {
     internal: u32,
 }
 
+impl PieceRec {
+    fn true_range(&self) -> core::ops::Range<usize> {
+        self.true_start as usize..self.true_start as usize + self.true_len as usize
+    }
+    fn buf_range(&self) -> core::ops::Range<usize> {
+        self.buf_start as usize..self.buf_start as usize + self.buf_len as usize
+    }
+}
+
 #[derive(Clone, Copy, Debug, Default)]
 struct Rect0(i32, i32, i32, i32);
+
+impl Rect0 {
+    /// The box of a piece's vertices (never empty).
+    fn of(pts: &[Point]) -> Self {
+        Rect::of_points(pts).map(Into::into).unwrap_or_default()
+    }
+}
 
 impl From<Rect> for Rect0 {
     fn from(r: Rect) -> Self {
@@ -255,9 +271,7 @@ impl<const PIECES: usize, const VERTS: usize, const CELLS: usize, const REFS: us
             p.buf_start = p.true_start;
             p.buf_len = p.true_len;
             p.internal = 0;
-            p.bbox = Rect::of_points(&self.verts[p.true_start as usize..][..p.true_len as usize])
-                .map(Into::into)
-                .unwrap_or_default();
+            p.bbox = Rect0::of(&self.verts[p.true_range()]);
         }
         self.grid.clear();
         self.finished = false;
@@ -288,7 +302,7 @@ impl<const PIECES: usize, const VERTS: usize, const CELLS: usize, const REFS: us
         let mut id = 0;
         for (i, p) in pieces.iter().enumerate() {
             // Every check was made above: this cannot fail half-way.
-            id = self.push_piece(kind, i == 0, p)?;
+            id = self.push_checked(kind, i == 0, p);
         }
         Ok(id)
     }
@@ -320,6 +334,11 @@ impl<const PIECES: usize, const VERTS: usize, const CELLS: usize, const REFS: us
         if self.true_verts + p.len() > VERTS {
             return Err(MapError::Full(Capacity::Vertices));
         }
+        Ok(self.push_checked(kind, new_obstacle, p))
+    }
+
+    /// `push_piece` once its checks have passed.
+    fn push_checked(&mut self, kind: ObstacleKind, new_obstacle: bool, p: &[Point]) -> u16 {
         self.unfinish();
         if new_obstacle {
             let first_piece = self.pieces.len() as u16;
@@ -327,24 +346,23 @@ impl<const PIECES: usize, const VERTS: usize, const CELLS: usize, const REFS: us
         }
         let id = self.obstacles.len() as u16 - 1;
         let start = self.verts.len() as u32;
-        // Capacities were checked above: these pushes cannot fail.
+        // The caller checked the capacities: these pushes cannot fail.
         let _ = self.verts.extend_from_slice(p);
         let len = p.len() as u8;
-        let bbox = Rect::of_points(p).map(Into::into).unwrap_or_default();
         let _ = self.pieces.push(PieceRec {
             obstacle: id,
             true_len: len,
             buf_len: len,
             true_start: start,
             buf_start: start,
-            bbox,
+            bbox: Rect0::of(p),
             internal: 0,
         });
         self.true_verts = self.verts.len();
         if let Some(o) = self.obstacles.last_mut() {
             o.piece_count += 1;
         }
-        Ok(id)
+        id
     }
 
     /// Grows every piece by `buffer_mm` and builds the grid index with square
@@ -370,14 +388,14 @@ impl<const PIECES: usize, const VERTS: usize, const CELLS: usize, const REFS: us
         self.buffer_mm = buffer_mm;
         for i in 0..self.pieces.len() {
             let rec = self.pieces[i];
-            let shape = Convex::new_unchecked(&self.verts[rec.true_start as usize..][..rec.true_len as usize]);
+            let shape = Convex::new_unchecked(&self.verts[rec.true_range()]);
             let grown = grow(shape, buffer_mm).map_err(MapError::Buffer)?;
             let start = self.verts.len() as u32;
             self.verts.extend_from_slice(&grown).map_err(|_| MapError::Full(Capacity::Vertices))?;
             let rec = &mut self.pieces[i];
             rec.buf_start = start;
             rec.buf_len = grown.len() as u8;
-            rec.bbox = Rect::of_points(&grown).map(Into::into).unwrap_or_default();
+            rec.bbox = Rect0::of(&grown);
         }
         let boxes = self.pieces.iter().map(|p| Rect::from(p.bbox));
         self.grid.build(boxes, cell_mm)?;
@@ -390,7 +408,7 @@ impl<const PIECES: usize, const VERTS: usize, const CELLS: usize, const REFS: us
     fn mark_seams(&mut self) {
         for i in 0..self.pieces.len() {
             let rec = self.pieces[i];
-            let a = Convex::new_unchecked(&self.verts[rec.true_start as usize..][..rec.true_len as usize]);
+            let a = Convex::new_unchecked(&self.verts[rec.true_range()]);
             if a.is_wall() {
                 continue;
             }
@@ -406,7 +424,7 @@ impl<const PIECES: usize, const VERTS: usize, const CELLS: usize, const REFS: us
                     if id as usize == i || other.obstacle != rec.obstacle {
                         return;
                     }
-                    let b = Convex::new_unchecked(&verts[other.true_start as usize..][..other.true_len as usize]);
+                    let b = Convex::new_unchecked(&verts[other.true_range()]);
                     for ea in 0..a.edge_count() {
                         let (u, v) = a.edge(ea);
                         for eb in 0..b.edge_count() {
@@ -480,8 +498,8 @@ impl<const PIECES: usize, const VERTS: usize, const CELLS: usize, const REFS: us
         Some(Piece {
             id,
             obstacle: r.obstacle,
-            shape: Convex::new_unchecked(&self.verts[r.true_start as usize..][..r.true_len as usize]),
-            buffered: Convex::new_unchecked(&self.verts[r.buf_start as usize..][..r.buf_len as usize]),
+            shape: Convex::new_unchecked(&self.verts[r.true_range()]),
+            buffered: Convex::new_unchecked(&self.verts[r.buf_range()]),
             bbox: r.bbox.into(),
             internal: r.internal,
         })
