@@ -49,13 +49,7 @@ fn bench(c: &mut Criterion) {
             for p in &ps {
                 let s = predict_ring(&*m, p, &PIONEER16, &params, &net, &mut out).unwrap();
                 predicted += out.iter().filter(|o| o.is_some()).count();
-                tot.collect.candidates += s.collect.candidates;
-                tot.collect.path_tests += s.collect.path_tests;
-                tot.collect.sector_tests += s.collect.sector_tests;
-                tot.beacons += s.beacons;
-                tot.edges += s.edges;
-                tot.kappa_evals += s.kappa_evals;
-                tot.occlusion_tests += s.occlusion_tests;
+                tot += s;
             }
             let n = (ps.len() * 16) as f64;
             println!(

@@ -167,6 +167,17 @@ pub struct PredictStats {
     pub occlusion_tests: u32,
 }
 
+impl core::ops::AddAssign for PredictStats {
+    /// Sums the counts (for a ring, or many rings).
+    fn add_assign(&mut self, o: PredictStats) {
+        self.collect += o.collect;
+        self.beacons += o.beacons;
+        self.edges += o.edges;
+        self.kappa_evals += o.kappa_evals;
+        self.occlusion_tests += o.occlusion_tests;
+    }
+}
+
 /// Predicts the reading of the transducer whose window is `window`.
 pub fn predict<const P: usize, const V: usize, const C: usize, const R: usize, K: Credence + ?Sized>(
     map: &Map<P, V, C, R>,

@@ -84,14 +84,7 @@ pub fn predict_ring<const P: usize, const V: usize, const C: usize, const R: usi
         let window = Window::place(&params.window, apex, heading)?;
         let (p, st) = predict(map, &window, params, credence)?;
         *slot = p;
-        total.beacons += st.beacons;
-        total.edges += st.edges;
-        total.kappa_evals += st.kappa_evals;
-        total.occlusion_tests += st.occlusion_tests;
-        total.collect.cells += st.collect.cells;
-        total.collect.candidates += st.collect.candidates;
-        total.collect.path_tests += st.collect.path_tests;
-        total.collect.sector_tests += st.collect.sector_tests;
+        total += st;
     }
     Ok(total)
 }

@@ -40,6 +40,16 @@ pub struct CollectStats {
     pub sector_tests: u32,
 }
 
+impl core::ops::AddAssign for CollectStats {
+    /// Sums the counts.
+    fn add_assign(&mut self, o: CollectStats) {
+        self.cells += o.cells;
+        self.candidates += o.candidates;
+        self.path_tests += o.path_tests;
+        self.sector_tests += o.sector_tests;
+    }
+}
+
 /// A window placed in the map: the sector and its pseudo-path end points.
 #[derive(Clone, Debug)]
 pub struct Window {
