@@ -44,16 +44,14 @@ pub fn window_cmd(a: &WindowArgs) -> Result<String, LabError> {
         ds_min_mm: a.ds_min_mm,
         tb_mm: a.tb_mm,
     };
-    let err = |e| LabError(format!("window parameters: {e:?}"));
-    let n = p.n_pp().map_err(err)?;
-    let ends: Vec<Value> = (0..n)
-        .map(|k| p.endpoint(k).map(|(x, y)| json!([round3(x as f64), round3(y as f64)])))
-        .collect::<Result<_, _>>()
-        .map_err(err)?;
+    // The layout once: N_pp, w, w_min and every end point from it.
+    let l = p.layout().map_err(|e| LabError(format!("window parameters: {e:?}")))?;
+    let y = round3(p.r_max_mm as f64);
+    let ends: Vec<Value> = (0..l.n_pp).map(|k| json!([round3(l.endpoint_x(k) as f64), y])).collect();
     Ok(json!({
-        "n_pp": n,
-        "w_mm": round3(p.w_mm().map_err(err)? as f64),
-        "w_min_mm": round3(p.w_min_mm() as f64),
+        "n_pp": l.n_pp,
+        "w_mm": round3(l.w_mm as f64),
+        "w_min_mm": round3(l.w_min_mm as f64),
         "endpoints_mm": ends,
         "pseudo_paths_complete": p.pseudo_paths_complete(),
     })
