@@ -22,7 +22,7 @@
 
 use heapless::Vec;
 
-use crate::geometry::{cross, Convex, Point, MAX_BUFFERED_VERTICES};
+use crate::geometry::{cross, isqrt, Convex, Point, MAX_BUFFERED_VERTICES};
 
 /// Largest buffer, mm (100 m): keeps grown coordinates far from overflow.
 pub const MAX_BUFFER_MM: u32 = 100_000;
@@ -46,7 +46,7 @@ pub type Buffered = Vec<Point, MAX_BUFFERED_VERTICES>;
 pub fn octagon_s(a: u32) -> u32 {
     let a = a as u64;
     let target = 2 * a * a;
-    // Start from the float-free integer square root, then settle exactly.
+    // Start from the integer square root, then settle exactly.
     let mut s = isqrt(target).saturating_sub(a);
     while (a + s) * (a + s) < target {
         s += 1;
@@ -55,20 +55,6 @@ pub fn octagon_s(a: u32) -> u32 {
         s -= 1;
     }
     s as u32
-}
-
-fn isqrt(v: u64) -> u64 {
-    if v < 2 {
-        return v;
-    }
-    // Newton's method on integers.
-    let mut x = v;
-    let mut y = x.div_ceil(2);
-    while y < x {
-        x = y;
-        y = (x + v / x) / 2;
-    }
-    x
 }
 
 /// The octagon circumscribing the disk of radius `a`, counter-clockwise,

@@ -5,6 +5,7 @@
 //! (Cortex-M0 builds) and no `libm`.
 
 use super::error::ConfigError;
+use crate::geometry::isqrt;
 
 /// c at 0 °C, mm/s.
 const C0_MM_PER_S: u64 = 331_300;
@@ -94,38 +95,9 @@ impl SpeedOfSound {
     }
 }
 
-/// ⌊√n⌋, bit by bit: no float, no division, 32 iterations at most.
-const fn isqrt(n: u64) -> u64 {
-    let mut rem = n;
-    let mut root = 0u64;
-    let mut bit = 1u64 << 62;
-    while bit > n {
-        bit >>= 2;
-    }
-    while bit != 0 {
-        if rem >= root + bit {
-            rem -= root + bit;
-            root = (root >> 1) + bit;
-        } else {
-            root >>= 1;
-        }
-        bit >>= 2;
-    }
-    root
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn isqrt_is_the_floor() {
-        for n in [0u64, 1, 2, 3, 4, 15, 16, 17, 99, 100, u32::MAX as u64, u64::MAX] {
-            let r = isqrt(n);
-            assert!(r * r <= n);
-            assert!((r + 1).checked_mul(r + 1).is_none_or(|s| s > n), "n={n} r={r}");
-        }
-    }
 
     #[test]
     fn known_speeds() {

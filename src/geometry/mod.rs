@@ -8,6 +8,7 @@
 mod clip;
 mod convex;
 mod holes;
+mod isqrt;
 mod point;
 mod predicates;
 mod split;
@@ -16,6 +17,7 @@ mod wide;
 pub(crate) use clip::{Frac, ParamRange};
 pub use convex::{Convex, ConvexError, MAX_BUFFERED_VERTICES, MAX_PIECE_VERTICES};
 pub use holes::{split_convex_with_holes, strictly_inside, HolesError, Ring};
+pub use isqrt::isqrt;
 pub use point::{Point, Rect, Segment, COORD_MAX};
 pub use predicates::{cross, dot, orient, point_on_segment, segments_intersect, Side};
 pub use split::{split_convex, SplitError};

@@ -42,17 +42,6 @@ pub fn spin(n: u32) {
     }
 }
 
-/// Integer square root (Newton).
-pub fn isqrt(v: u64) -> u64 {
-    let mut x = v;
-    let mut y = x.div_ceil(2);
-    while y < x {
-        x = y;
-        y = (x + v / x) / 2;
-    }
-    x
-}
-
 /// The stack's bounds `(top, bottom)`: cortex-m-rt's `_stack_start` and `_stack_end`.
 pub fn stack_bounds() -> (usize, usize) {
     extern "C" {

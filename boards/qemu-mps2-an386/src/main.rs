@@ -13,11 +13,11 @@
 use cortex_m_rt::entry;
 use cortex_m_semihosting::hprintln;
 use echoloc::credence::net::CredenceNet;
-use echoloc::geometry::{Point, Segment};
+use echoloc::geometry::{isqrt, Point, Segment};
 use echoloc::map::{BlobError, Layer, StandardMap};
 use echoloc::predict::{predict_ring, Pose, PredictParams, PIONEER16};
 use echoloc::window::{Strategy, WindowParams};
-use qemu_mps2_an386::{elapsed, exit, isqrt, spin, stack_high_water, start_systick, ticks};
+use qemu_mps2_an386::{elapsed, exit, spin, stack_high_water, start_systick, ticks};
 use static_cell::ConstStaticCell;
 
 /// The map lives in a static, initialised at compile time: no stack copy.

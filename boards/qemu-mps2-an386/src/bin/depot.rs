@@ -12,9 +12,9 @@
 
 use cortex_m_rt::entry;
 use cortex_m_semihosting::hprintln;
-use echoloc::geometry::{Point, Segment};
+use echoloc::geometry::{isqrt, Point, Segment};
 use echoloc::map::{Layer, StandardMap};
-use qemu_mps2_an386::{exit, isqrt};
+use qemu_mps2_an386::exit;
 use static_cell::ConstStaticCell;
 
 /// The map lives in a static, initialised at compile time: no stack copy.
