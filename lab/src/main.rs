@@ -34,13 +34,15 @@ enum Cmd {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
-    let result = match cli.cmd {
-        Cmd::Map(c) => map::run(c),
-        Cmd::Window(a) => predict::window_cmd(&a),
-        Cmd::Predict(a) => predict::predict_cmd(&a),
-        Cmd::Synth(a) => credence::synth_cmd(&a).map_err(|e| map::LabError(e.to_string())),
-        Cmd::Train(a) => credence::train_cmd(&a).map_err(|e| map::LabError(e.to_string())),
-    };
+    // Splitting a large polygon needs a few MB of stack (fixed-capacity
+    // working sets, as on the firmware side), and every command that reads a
+    // map source may split one (`map import`, `predict --map x.yaml`): run
+    // them all on a thread that has it.
+    let result = std::thread::Builder::new()
+        .stack_size(256 << 20)
+        .spawn(move || run(cli.cmd))
+        .map_err(|e| map::LabError(format!("cannot start the worker thread: {e}")))
+        .and_then(|h| h.join().unwrap_or_else(|_| Err(map::LabError("internal error: the worker panicked".into()))));
     match result {
         Ok(json) => {
             println!("{json}");
@@ -50,5 +52,15 @@ fn main() -> ExitCode {
             eprintln!("echoloc-lab: {e}");
             ExitCode::FAILURE
         }
+    }
+}
+
+fn run(cmd: Cmd) -> Result<String, map::LabError> {
+    match cmd {
+        Cmd::Map(c) => map::run(c),
+        Cmd::Window(a) => predict::window_cmd(&a),
+        Cmd::Predict(a) => predict::predict_cmd(&a),
+        Cmd::Synth(a) => credence::synth_cmd(&a).map_err(|e| map::LabError(e.to_string())),
+        Cmd::Train(a) => credence::train_cmd(&a).map_err(|e| map::LabError(e.to_string())),
     }
 }

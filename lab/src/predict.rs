@@ -142,15 +142,12 @@ fn triple(s: &str, what: &str) -> Result<(f64, f64, f64), LabError> {
 /// Loads MAP in any of its three forms into the firmware's map.
 pub fn load_map(path: &Path, buffer_mm: u32) -> Result<Box<StandardMap>, LabError> {
     let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
-    let blob = if ext == "map" {
-        std::fs::read(path).map_err(|e| LabError(format!("{}: {e}", path.display())))?
-    } else {
-        let shapes = map::read_shapes(path)?;
-        map::build_map(&shapes, buffer_mm, 1000).map_err(|e| LabError(format!("{}: {e}", path.display())))?.0
-    };
-    let mut m: Box<StandardMap> = Box::default();
-    m.load(&blob).map_err(|e| LabError(format!("{}: not a valid map blob: {e:?}", path.display())))?;
-    Ok(m)
+    if ext == "map" {
+        return Ok(map::load_blob(path)?.0);
+    }
+    let shapes = map::read_shapes(path)?;
+    let blob = map::build_map(&shapes, buffer_mm, 1000).map_err(|e| LabError(format!("{}: {e}", path.display())))?.0;
+    map::blob_to_map(&blob, path)
 }
 
 fn ring_mounts(spec: &str) -> Result<Vec<Mount>, LabError> {
@@ -179,17 +176,16 @@ fn ring_mounts(spec: &str) -> Result<Vec<Mount>, LabError> {
 }
 
 pub fn predict_cmd(a: &PredictArgs) -> Result<String, LabError> {
+    let map = load_map(&a.map, a.buffer_mm)?;
     let window = WindowParams {
         r_min_mm: a.rmin_mm,
         r_max_mm: a.rmax_mm,
         half_angle_deg: a.half_angle_deg,
         delta_max_deg: a.delta_max_deg,
         ds_min_mm: a.ds_min_mm,
-        tb_mm: 0,
+        // Pseudo-paths search the buffered outlines the map was finished with.
+        tb_mm: map.buffer_mm(),
     };
-    let map = load_map(&a.map, a.buffer_mm)?;
-    // Pseudo-paths search the buffered outlines the map was finished with.
-    let window = WindowParams { tb_mm: map.buffer_mm(), ..window };
     window.validate().map_err(|e| LabError(format!("window parameters: {e:?}")))?;
     if !(0.0..=1.0).contains(&a.tau) {
         return Err(LabError(format!("--tau {}: must be within 0..=1", a.tau)));
@@ -251,6 +247,5 @@ pub fn predict_cmd(a: &PredictArgs) -> Result<String, LabError> {
 }
 
 fn wrap_deg(d: f64) -> f64 {
-    let w = (d + 180.0).rem_euclid(360.0) - 180.0;
-    (w * 1000.0).round() / 1000.0
+    round3((d + 180.0).rem_euclid(360.0) - 180.0)
 }

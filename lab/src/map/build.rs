@@ -21,7 +21,7 @@ pub enum Shape {
 
 /// Most vertices one polygon (outer ring, holes and two bridge vertices per
 /// hole) may have before splitting. The splitter's working set is about 110
-/// bytes a vertex on the stack: [`super::run`] gives the import a large one.
+/// bytes a vertex on the stack: `main` runs every command on a thread with a large one.
 pub const SPLIT_CAPACITY: usize = 32768;
 
 /// The import's figures, printed as JSON.

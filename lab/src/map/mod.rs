@@ -175,17 +175,6 @@ pub struct Source {
 }
 
 pub fn run(cmd: MapCmd) -> Result<String, LabError> {
-    // Splitting a large polygon needs a few MB of stack (fixed-capacity
-    // working sets, as on the firmware side): run on a thread that has them.
-    std::thread::Builder::new()
-        .stack_size(256 << 20)
-        .spawn(move || run_here(cmd))
-        .map_err(|e| LabError(format!("cannot start the worker thread: {e}")))?
-        .join()
-        .unwrap_or_else(|_| Err(LabError("internal error: the map worker panicked".into())))
-}
-
-fn run_here(cmd: MapCmd) -> Result<String, LabError> {
     match cmd {
         MapCmd::Import { input, out, buffer_mm, cell_mm, simplify_mm, unknown, preview } => {
             let src = read_source(&input, &ImportOptions { simplify_mm, unknown })?;
@@ -236,11 +225,17 @@ fn run_here(cmd: MapCmd) -> Result<String, LabError> {
     }
 }
 
-fn load_blob(path: &Path) -> Result<(Box<StandardMap>, usize), LabError> {
+/// Reads a blob file and loads it as the firmware does; also its size.
+pub fn load_blob(path: &Path) -> Result<(Box<StandardMap>, usize), LabError> {
     let bytes = std::fs::read(path).map_err(|e| ImportError::Io { path: path.to_path_buf(), source: e })?;
+    Ok((blob_to_map(&bytes, path)?, bytes.len()))
+}
+
+/// Loads blob bytes (read from, or made for, `path`) as the firmware does.
+pub fn blob_to_map(bytes: &[u8], path: &Path) -> Result<Box<StandardMap>, LabError> {
     let mut m: Box<StandardMap> = Box::default();
-    m.load(&bytes).map_err(|e| LabError(format!("{}: not a valid map blob: {e:?}", path.display())))?;
-    Ok((m, bytes.len()))
+    m.load(bytes).map_err(|e| LabError(format!("{}: not a valid map blob: {e:?}", path.display())))?;
+    Ok(m)
 }
 
 /// Reads a map source by its extension, with the default import options.
