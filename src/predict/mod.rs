@@ -40,7 +40,7 @@
 
 mod ring;
 
-pub use ring::{place_sensor, predict_ring, Mount, Pose, PIONEER16};
+pub use ring::{place_sensor, predict_mount, predict_ring, Mount, Pose, PIONEER16};
 
 use heapless::Vec;
 

@@ -67,6 +67,19 @@ pub fn place_sensor(pose: &Pose, mount: &Mount) -> (Point, f32) {
     (Point::new(libm::roundf(x) as i32, libm::roundf(y) as i32), heading)
 }
 
+/// Predicts one transducer: its window placed at `pose ∘ mount`.
+pub fn predict_mount<const P: usize, const V: usize, const C: usize, const R: usize, K: Credence + ?Sized>(
+    map: &Map<P, V, C, R>,
+    pose: &Pose,
+    mount: &Mount,
+    params: &PredictParams,
+    credence: &K,
+) -> Result<(Option<Prediction>, PredictStats), PredictError> {
+    let (apex, heading) = place_sensor(pose, mount);
+    let window = Window::place(&params.window, apex, heading)?;
+    predict(map, &window, params, credence)
+}
+
 /// Predicts every transducer of a ring for one pose into `out` (one slot per
 /// mount; `out` must be at least as long as `mounts`). Returns the summed
 /// work counts.
@@ -80,9 +93,7 @@ pub fn predict_ring<const P: usize, const V: usize, const C: usize, const R: usi
 ) -> Result<PredictStats, PredictError> {
     let mut total = PredictStats::default();
     for (mount, slot) in mounts.iter().zip(out.iter_mut()) {
-        let (apex, heading) = place_sensor(pose, mount);
-        let window = Window::place(&params.window, apex, heading)?;
-        let (p, st) = predict(map, &window, params, credence)?;
+        let (p, st) = predict_mount(map, pose, mount, params, credence)?;
         *slot = p;
         total += st;
     }

@@ -50,8 +50,8 @@ use echoloc::credence::net::CredenceNet;
 use echoloc::credence::Kappa;
 use echoloc::driver::{Eeruf, ModuleConfig, Outcome, Ring, RingConfig, RingTiming, SpeedOfSound, Timing};
 use echoloc::map::StandardMap;
-use echoloc::predict::{place_sensor, predict, Pose, PredictError, PredictParams, Prediction, PIONEER16};
-use echoloc::window::{Window, WindowParams};
+use echoloc::predict::{predict_mount, Pose, PredictError, PredictParams, Prediction, PIONEER16};
+use echoloc::window::WindowParams;
 use stm32f4xx_hal::gpio::{self, Input, Output, PushPull};
 use stm32f4xx_hal::pac::TIM5;
 use stm32f4xx_hal::rcc::Rcc;
@@ -167,9 +167,7 @@ pub fn expect(
     let Some(mount) = PIONEER16.get(usize::from(transducer)) else {
         return Ok(Expected::Unknown);
     };
-    let (apex, heading) = place_sensor(pose, mount);
-    let window = Window::place(&params.window, apex, heading).map_err(PredictError::Window)?;
-    let (p, _) = predict(map, &window, params, net)?;
+    let (p, _) = predict_mount(map, pose, mount, params, net)?;
     Ok(p.map_or(Expected::Nothing, Expected::Echo))
 }
 

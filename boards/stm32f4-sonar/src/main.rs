@@ -79,9 +79,13 @@ fn main() -> ! {
 
     // What each transducer should read from the pose estimate.
     let mut expected = [Expected::Unknown; TRANSDUCERS];
+    // What transducer `t` should read, into its slot of `expected`.
+    let refresh = |expected: &mut [Expected; TRANSDUCERS], t: u8| {
+        expected[usize::from(t)] = expect(map, &pose, t, &params, &net).unwrap_or(Expected::Unknown);
+    };
     let mut tally = CycleTally::default();
     if let Some(t) = ring.schedule().transducer(0) {
-        expected[usize::from(t)] = expect(map, &pose, t, &params, &net).unwrap_or(Expected::Unknown);
+        refresh(&mut expected, t);
     }
     loop {
         let reading = match ring.poll() {
@@ -94,7 +98,7 @@ fn main() -> ! {
                 let _ = ring.reset();
                 tally = CycleTally::default();
                 if let Some(t) = ring.schedule().transducer(0) {
-                    expected[usize::from(t)] = expect(map, &pose, t, &params, &net).unwrap_or(Expected::Unknown);
+                    refresh(&mut expected, t);
                 }
                 continue;
             }
@@ -106,7 +110,7 @@ fn main() -> ! {
         // fires next, from the pose estimate as it is now.
         let next_slot = usize::from(reading.slot) + 1;
         if let Some(n) = ring.schedule().transducer(next_slot % TRANSDUCERS) {
-            expected[usize::from(n)] = expect(map, &pose, n, &params, &net).unwrap_or(Expected::Unknown);
+            refresh(&mut expected, n);
         }
 
         if next_slot == TRANSDUCERS {
