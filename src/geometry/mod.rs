@@ -20,5 +20,5 @@ pub use holes::{split_convex_with_holes, strictly_inside, HolesError, Ring};
 pub use isqrt::isqrt;
 pub use point::{Point, Rect, Segment, COORD_MAX};
 pub use predicates::{cross, dot, orient, point_on_segment, segments_intersect, Side};
-pub use split::{split_convex, SplitError};
+pub use split::{ring_area2, split_convex, SplitError};
 pub use wide::U256;

@@ -98,8 +98,16 @@ pub fn split_convex<const N: usize, E>(
     })
 }
 
-/// Twice the signed area of a ring (positive when counter-clockwise), exact.
-pub(super) fn ring_area2(ring: &[Point]) -> i128 {
+/// Twice the signed area of a ring (positive when counter-clockwise), exact
+/// (`i128`: the sum of many `i64` terms may exceed `i64`); 0 below three
+/// vertices.
+///
+/// ```
+/// use echoloc::geometry::{ring_area2, Point};
+/// let sq = [Point::new(0, 0), Point::new(10, 0), Point::new(10, 10), Point::new(0, 10)];
+/// assert_eq!(ring_area2(&sq), 200);
+/// ```
+pub fn ring_area2(ring: &[Point]) -> i128 {
     let n = ring.len();
     if n < 3 {
         return 0;

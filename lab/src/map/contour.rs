@@ -18,8 +18,6 @@
 
 use std::collections::HashMap;
 
-use echoloc::geometry::{orient, Point};
-
 /// A polygon with holes on the half-cell lattice.
 #[derive(Clone, Debug, PartialEq)]
 pub struct LatticePolygon {
@@ -130,14 +128,6 @@ fn drop_straight(ring: Vec<(i64, i64)>) -> Vec<(i64, i64)> {
 pub fn area2(r: &[(i64, i64)]) -> i128 {
     let n = r.len();
     (0..n).map(|k| (r[k].0 as i128) * (r[(k + 1) % n].1 as i128) - (r[(k + 1) % n].0 as i128) * (r[k].1 as i128)).sum()
-}
-
-/// Twice the signed area of a ring in mm, exact.
-pub fn area2_mm(r: &[Point]) -> i128 {
-    if r.len() < 3 {
-        return 0;
-    }
-    (1..r.len() - 1).map(|i| orient(r[0], r[i], r[i + 1]) as i128).sum()
 }
 
 #[cfg(test)]

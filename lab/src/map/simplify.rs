@@ -15,9 +15,7 @@
 //! `2·tol` in x or y is dropped: every point of it lies within `tol` of its
 //! boundary, so the bound still holds.
 
-use echoloc::geometry::{orient, segments_intersect, strictly_inside, Point};
-
-use super::contour::area2_mm;
+use echoloc::geometry::{dot, orient, ring_area2, segments_intersect, strictly_inside, Point};
 
 /// Squared distance from `p` to the closed segment `ab`, compared with
 /// `tol²`: whether `p` lies within `tol` of it. Exact.
@@ -159,10 +157,13 @@ fn conflicts(rings: &[&[Point]], simple: &[Vec<usize>]) -> Vec<(usize, usize)> {
     let mut bad = std::collections::BTreeSet::new();
     // Segments, with their x-range for a sweep.
     let mut segs: Vec<(i32, i32, usize, usize, Point, Point)> = Vec::new();
-    for (r, idx) in simple.iter().enumerate() {
-        let pts: Vec<Point> = idx.iter().map(|&i| rings[r][i]).collect();
-        let want = area2_mm(rings[r]).signum();
-        if pts.len() < 3 || area2_mm(&pts).signum() != want {
+    // Each simplified ring's points, built once.
+    let kept: Vec<Vec<Point>> =
+        simple.iter().enumerate().map(|(r, idx)| idx.iter().map(|&i| rings[r][i]).collect()).collect();
+    for (r, pts) in kept.iter().enumerate() {
+        let idx = &simple[r];
+        let want = ring_area2(rings[r]).signum();
+        if pts.len() < 3 || ring_area2(pts).signum() != want {
             bad.extend((0..idx.len()).map(|s| (r, s)));
         }
         for s in 0..pts.len() {
@@ -171,10 +172,10 @@ fn conflicts(rings: &[&[Point]], simple: &[Vec<usize>]) -> Vec<(usize, usize)> {
         }
     }
     // A hole that left the outer ring without crossing it.
-    let outer: Vec<Point> = simple[0].iter().map(|&i| rings[0][i]).collect();
+    let outer = &kept[0];
     for r in 1..simple.len() {
         if let Some(&i) = simple[r].first() {
-            if !strictly_inside(&outer, rings[r][i]) {
+            if !strictly_inside(outer, rings[r][i]) {
                 bad.extend((0..outer.len()).map(|s| (0, s)));
                 bad.extend((0..simple[r].len()).map(|s| (r, s)));
             }
@@ -195,8 +196,7 @@ fn conflicts(rings: &[&[Point]], simple: &[Vec<usize>]) -> Vec<(usize, usize)> {
                 // Neighbours share a vertex; they must not fold back onto
                 // each other. (A two-segment ring is caught by its area.)
                 let (p, q, t) = if (s + 1) % n == s2 { (a, b, d) } else { (c, d, b) };
-                orient(p, q, t) == 0
-                    && (q.x - p.x) as i64 * (t.x - q.x) as i64 + (q.y - p.y) as i64 * (t.y - q.y) as i64 <= 0
+                orient(p, q, t) == 0 && dot(q.sub(p), t.sub(q)) <= 0
             } else {
                 segments_intersect(a, b, c, d)
             };
