@@ -159,16 +159,22 @@ where
     /// If an earlier write left INIT (or BINH) possibly high, they are driven
     /// low first: the multiplexer is never switched under a raised INIT.
     pub fn select(&mut self, transducer: u8) -> Result<(), Error<E>> {
+        self.prepare(transducer)?;
+        self.select_lines(transducer)
+    }
+
+    /// What `select` and `start` both check and do first: idle (switching the
+    /// multiplexer under a listening transducer would cut its echo off), a
+    /// transducer that exists, and the leftovers of a stop whose writes
+    /// failed driven low.
+    fn prepare(&mut self, transducer: u8) -> Result<(), Error<E>> {
         if !self.is_idle() {
-            // Switching the multiplexer under a listening transducer would
-            // cut its echo off.
             return Err(Error::Busy);
         }
         if transducer as usize >= Self::TRANSDUCERS {
             return Err(Error::NoSuchTransducer(transducer));
         }
-        self.settle_idle()?;
-        self.select_lines(transducer)
+        self.settle_idle()
     }
 
     /// Drive low what a failed write may have left high: a ping must start
@@ -188,10 +194,8 @@ where
         Ok(())
     }
 
+    /// Both callers (`select`, `start`) checked `transducer` in `prepare`.
     fn select_lines(&mut self, transducer: u8) -> Result<(), Error<E>> {
-        if transducer as usize >= Self::TRANSDUCERS {
-            return Err(Error::NoSuchTransducer(transducer));
-        }
         if self.selected == Some(transducer) {
             return Ok(());
         }
@@ -218,14 +222,7 @@ where
     /// already high. On any error the module is idle with INIT low (or
     /// marked to be driven low first thing at the next ping).
     pub fn start(&mut self, transducer: u8) -> Result<u32, Error<E>> {
-        if !self.is_idle() {
-            return Err(Error::Busy);
-        }
-        if transducer as usize >= Self::TRANSDUCERS {
-            return Err(Error::NoSuchTransducer(transducer));
-        }
-        // Leftovers of a stop whose writes failed.
-        self.settle_idle()?;
+        self.prepare(transducer)?;
         // With INIT low a healthy module holds ECHO low: high now would be
         // taken for an echo at once.
         if self.echo.is_high().map_err(Error::Pin)? {

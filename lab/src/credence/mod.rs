@@ -320,10 +320,11 @@ pub fn train_cmd(a: &TrainArgs) -> Result<String, CredenceError> {
     let firmware = CredenceNet::new(&quant);
     let fw_model = FirmwareModel(firmware);
     let (g_height, g_width) = gauss.describe();
+    let net_rmse = train::rmse(&net, &all);
     report.insert(
         "final".into(),
         json!({
-            "net_rmse": round(train::rmse(&net, &all), 4),
+            "net_rmse": round(net_rmse, 4),
             "quantised_net_rmse": round(train::rmse(&fw_model, &all), 4),
             "gaussian_rmse": round(train::rmse(&gauss, &all), 4),
             "gaussian_height_at_3m": round(g_height, 4),
@@ -352,7 +353,7 @@ pub fn train_cmd(a: &TrainArgs) -> Result<String, CredenceError> {
             seed: a.seed,
             epochs: a.epochs,
             restarts: a.restarts,
-            train_rmse: train::rmse(&net, &all),
+            train_rmse: net_rmse,
             max_quant_error: max_err,
         };
         outputs.add(out.clone(), quantise::weights_source(&prov, &float, &quant).into_bytes());
