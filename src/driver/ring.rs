@@ -232,12 +232,8 @@ where
             }
             State::Listening { fired_at, late_us } => match self.module.poll() {
                 Ok(None) => Ok(None),
-                Ok(Some(echo)) => Ok(Some(self.finish_slot(fired_at, late_us, Ok(echo)))),
-                Err(Error::Fault(f)) => Ok(Some(self.finish_slot(fired_at, late_us, Err(f)))),
-                Err(e) => {
-                    self.advance();
-                    Err(e)
-                }
+                Ok(Some(echo)) => self.end_slot(fired_at, late_us, Ok(echo)).map(Some),
+                Err(e) => self.end_slot(fired_at, late_us, Err(e)).map(Some),
             },
         }
     }
@@ -248,7 +244,15 @@ where
         let State::Listening { fired_at, late_us } = self.state else {
             return Err(Error::Idle);
         };
-        match self.module.echo_captured(at_us) {
+        let r = self.module.echo_captured(at_us);
+        self.end_slot(fired_at, late_us, r)
+    }
+
+    /// Ends the slot on the module's answer: an echo or a fault is a
+    /// reading; any other error (a pin) moves on to the next slot and is
+    /// returned.
+    fn end_slot(&mut self, fired_at: u32, late_us: u32, r: Result<Echo, Error<E>>) -> Result<RingReading, Error<E>> {
+        match r {
             Ok(echo) => Ok(self.finish_slot(fired_at, late_us, Ok(echo))),
             Err(Error::Fault(f)) => Ok(self.finish_slot(fired_at, late_us, Err(f))),
             Err(e) => {
