@@ -52,17 +52,35 @@ pub fn stack_bounds() -> (usize, usize) {
     (core::ptr::addr_of!(_stack_start) as usize, core::ptr::addr_of!(_stack_end) as usize)
 }
 
+/// The first word in `from..to` that no longer holds cortex-m-rt's paint
+/// value (or `to`): the deepest stack use since the words were painted.
+/// Always inlined, so that its own frame does not scrub what it reads.
+#[inline(always)]
+pub fn first_unpainted(from: usize, to: usize) -> usize {
+    let mut p = from;
+    // SAFETY: the words between the bounds are plain RAM, read with volatile reads.
+    while p < to && unsafe { core::ptr::read_volatile(p as *const u32) } == cortex_m_rt::STACK_PAINT_VALUE {
+        p += 4;
+    }
+    p
+}
+
 /// Bytes of stack ever used, and the stack's size: cortex-m-rt painted
 /// `_stack_end.._stack_start` with `0xCCCC_CCCC` before `main` (feature
 /// `paint-stack`); the lowest overwritten word marks the deepest use.
 pub fn stack_high_water() -> (usize, usize) {
     let (top, bottom) = stack_bounds();
-    let mut p = bottom;
-    // SAFETY: the words between the bounds are plain RAM, read with volatile reads.
-    while p < top && unsafe { core::ptr::read_volatile(p as *const u32) } == cortex_m_rt::STACK_PAINT_VALUE {
-        p += 4;
-    }
-    (top - p, top - bottom)
+    (top - first_unpainted(bottom, top), top - bottom)
+}
+
+/// Times a loop of exactly 20 000 instructions, prints the calibration line
+/// every binary starts with, and returns instructions per SysTick tick.
+pub fn calibrate(syst: &Option<SYST>) -> u32 {
+    let t0 = ticks(syst);
+    spin(10_000);
+    let cal = elapsed(t0, ticks(syst)).max(1);
+    hprintln!("calibration: 20000 instructions = {} SysTick ticks ({} instructions per tick)", cal, 20_000 / cal);
+    20_000 / cal
 }
 
 /// Leaves QEMU through semihosting: exit code 0 when `ok`, 1 otherwise.

@@ -17,7 +17,7 @@ use echoloc::geometry::{isqrt, Point, Segment};
 use echoloc::map::{BlobError, Layer, StandardMap};
 use echoloc::predict::{predict_ring, Pose, PredictParams, PIONEER16};
 use echoloc::window::{Strategy, WindowParams};
-use qemu_mps2_an386::{elapsed, exit, spin, stack_high_water, start_systick, ticks};
+use qemu_mps2_an386::{calibrate, elapsed, exit, stack_high_water, start_systick, ticks};
 use static_cell::ConstStaticCell;
 
 /// The map lives in a static, initialised at compile time: no stack copy.
@@ -43,11 +43,7 @@ fn main() -> ! {
     let syst = start_systick();
 
     hprintln!("echoloc {} on mps2-an386 (Cortex-M4F)", env!("CARGO_PKG_VERSION"));
-    // Calibrate: a loop of exactly 2 instructions per turn (subs, bne).
-    let t0 = ticks(&syst);
-    spin(10_000);
-    let cal = elapsed(t0, ticks(&syst)).max(1);
-    hprintln!("calibration: 20000 instructions = {} SysTick ticks ({} instructions per tick)", cal, 20_000 / cal);
+    calibrate(&syst);
     let map = MAP.take();
 
     // A corrupted copy must be refused with a typed error, and leave the map empty.

@@ -25,7 +25,9 @@ use cortex_m_rt::entry;
 use cortex_m_semihosting::hprintln;
 use echoloc::credence::net::CredenceNet;
 use echoloc::credence::{Credence, EchoGeometry, Kappa};
-use qemu_mps2_an386::{elapsed, exit, spin, stack_high_water, start_systick, ticks};
+use qemu_mps2_an386::{
+    calibrate, elapsed, exit, first_unpainted, stack_bounds, stack_high_water, start_systick, ticks,
+};
 
 /// Evaluations timed: a 16 × 16 sweep of (R, θ).
 const SIDE: u32 = 16;
@@ -36,12 +38,7 @@ fn main() -> ! {
     let mut ok = true;
     let syst = start_systick();
     hprintln!("echoloc {} credence cost on mps2-an386 (Cortex-M4F)", env!("CARGO_PKG_VERSION"));
-    // Calibrate: a loop of exactly 2 instructions per turn (subs, bne).
-    let t0 = ticks(&syst);
-    spin(10_000);
-    let cal = elapsed(t0, ticks(&syst)).max(1);
-    let per_tick = 20_000 / cal;
-    hprintln!("calibration: 20000 instructions = {} SysTick ticks ({} instructions per tick)", cal, per_tick);
+    let per_tick = calibrate(&syst);
 
     let net = black_box(CredenceNet::shipped());
     // Sanity: the shipped net's lobes (host tests pin every value bit-exactly).
@@ -90,12 +87,13 @@ fn main() -> ! {
     // Stack: the deepest use so far (the printing, mostly), then repaint below
     // this frame, evaluate the sweep again and find the deepest word written.
     let (used, size) = stack_high_water();
-    let sp = paint_free_stack();
+    let (top, bottom) = stack_bounds();
+    let sp = paint_free_stack(bottom);
     let mut again = 0u32;
     for i in 0..N {
         again = again.wrapping_add(u32::from(kappa_call(&net, &black_box(sweep(i))).to_bits()));
     }
-    let kappa_stack = stack_used_below(sp);
+    let kappa_stack = sp - first_unpainted(bottom, sp);
     if again != sum || kappa_stack == 0 {
         hprintln!("FAIL: stack sweep checksum {} (expected {}), {} bytes measured", again, sum, kappa_stack);
         ok = false;
@@ -103,7 +101,7 @@ fn main() -> ! {
     hprintln!(
         "stack: {} bytes per kappa call, below main's frame of {}; high-water mark before: {} of {} bytes",
         kappa_stack,
-        stack_top() - sp,
+        top - sp,
         used,
         size
     );
@@ -117,52 +115,23 @@ fn kappa_call(net: &CredenceNet<'_>, e: &EchoGeometry) -> Kappa {
     black_box(net).kappa(e)
 }
 
-extern "C" {
-    /// The top of the stack (cortex-m-rt's linker script).
-    static _stack_start: u32;
-    /// The bottom of the stack (cortex-m-rt's linker script).
-    static _stack_end: u32;
-}
-
 /// Paints the free stack, from its bottom up to the current stack pointer,
 /// with cortex-m-rt's paint value; returns the stack pointer. Inlined into the
 /// caller, so that no frame of its own lies below the pointer it reads.
 #[inline(always)]
-fn paint_free_stack() -> usize {
+fn paint_free_stack(bottom: usize) -> usize {
     let sp = cortex_m::register::msp::read() as usize;
-    // SAFETY: only the symbol's address is taken; the words from the stack's
-    // bottom up to the stack pointer are free (no interrupt is enabled), and
-    // nothing below the pointer is live.
-    #[allow(unsafe_code)]
-    unsafe {
-        let mut p = core::ptr::addr_of!(_stack_end) as usize;
-        while p < sp {
-            core::ptr::write_volatile(p as *mut u32, cortex_m_rt::STACK_PAINT_VALUE);
-            p += 4;
-        }
+    let mut p = bottom;
+    while p < sp {
+        // SAFETY: the words from the stack's bottom up to the stack pointer
+        // are free (no interrupt is enabled), and nothing below it is live.
+        #[allow(unsafe_code)]
+        unsafe {
+            core::ptr::write_volatile(p as *mut u32, cortex_m_rt::STACK_PAINT_VALUE)
+        };
+        p += 4;
     }
     sp
-}
-
-/// Bytes below `sp` overwritten since [`paint_free_stack`] returned `sp`.
-/// Inlined, so that its own frame does not count.
-#[inline(always)]
-fn stack_used_below(sp: usize) -> usize {
-    // SAFETY: as in `stack_high_water`: painted RAM, read with volatile reads.
-    #[allow(unsafe_code)]
-    unsafe {
-        let mut p = core::ptr::addr_of!(_stack_end) as usize;
-        while p < sp && core::ptr::read_volatile(p as *const u32) == cortex_m_rt::STACK_PAINT_VALUE {
-            p += 4;
-        }
-        sp - p
-    }
-}
-
-/// The top of the stack (its initial pointer).
-fn stack_top() -> usize {
-    // Only the symbol's address is taken: no unsafe needed.
-    core::ptr::addr_of!(_stack_start) as usize
 }
 
 /// The i-th point of a 16 × 16 sweep over R 500…5500 mm × θ −45…45°.
