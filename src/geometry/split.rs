@@ -5,7 +5,7 @@
 
 use heapless::Vec;
 
-use super::{orient, segments_intersect, Point, MAX_PIECE_VERTICES};
+use super::{orient, HolesError, Point, MAX_PIECE_VERTICES};
 
 /// Why a polygon could not be split.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -55,46 +55,18 @@ pub fn split_convex<const N: usize, E>(
     max_piece_vertices: usize,
     emit: impl FnMut(&[Point]) -> Result<(), E>,
 ) -> Result<usize, SplitError<E>> {
-    let maxv = max_piece_vertices.clamp(3, MAX_PIECE_VERTICES);
-    if poly.len() > N || N > NONE as usize {
-        return Err(SplitError::TooManyVertices);
-    }
-    if !poly.iter().all(|p| p.in_range()) {
-        return Err(SplitError::CoordinateOutOfRange);
-    }
-    // 1. Clean: drop repeated and collinear vertices until none is left.
-    let mut pts: Vec<Point, N> = Vec::new();
-    for &p in poly {
-        // Capacity checked above.
-        let _ = pts.push(p);
-    }
-    clean_ring(&mut pts, 0);
-    let n = pts.len();
-    if n < 3 {
-        return Err(SplitError::Degenerate);
-    }
-    // 2. Simplicity: no two non-adjacent edges meet.
-    for i in 0..n {
-        for j in i + 2..n {
-            if i == 0 && j == n - 1 {
-                continue;
-            }
-            if segments_intersect(pts[i], pts[(i + 1) % n], pts[j], pts[(j + 1) % n]) {
-                return Err(SplitError::NotSimple { edge_a: i, edge_b: j });
-            }
+    // A polygon without holes: the same checks, cleaning, orientation and
+    // clipping as with holes, with the errors named for a single ring.
+    super::split_convex_with_holes::<N, E>(poly, &[], max_piece_vertices, emit).map_err(|e| match e {
+        HolesError::TooManyVertices => SplitError::TooManyVertices,
+        HolesError::CoordinateOutOfRange(_) => SplitError::CoordinateOutOfRange,
+        HolesError::Degenerate(_) => SplitError::Degenerate,
+        HolesError::Intersect { edge_a, edge_b, .. } => SplitError::NotSimple { edge_a, edge_b },
+        HolesError::Sink(e) => SplitError::Sink(e),
+        // Bridges and nesting concern holes: with none, only the guard remains.
+        HolesError::NoEar | HolesError::HoleOutside(_) | HolesError::NestedHoles { .. } | HolesError::NoBridge(_) => {
+            SplitError::NoEar
         }
-    }
-    // 3. Orientation (i128: the sum of many i64 terms may exceed i64).
-    let area2 = ring_area2(&pts);
-    if area2 == 0 {
-        return Err(SplitError::Degenerate);
-    }
-    if area2 < 0 {
-        pts.reverse();
-    }
-    clip_and_merge::<N, E>(&pts, maxv, emit).map_err(|e| match e {
-        ClipError::NoEar => SplitError::NoEar,
-        ClipError::Sink(e) => SplitError::Sink(e),
     })
 }
 
