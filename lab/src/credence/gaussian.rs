@@ -11,7 +11,7 @@
 //! chance: its height and width may both change with range; what it cannot
 //! have is more than one lobe.
 
-use super::train::{inputs, sigmoid, Model, Rprop, Sample};
+use super::train::{inputs, keep_best, sigmoid, Model, Rprop, Sample};
 
 /// The four parameters `p₀ … p₃`.
 #[derive(Clone, Debug, PartialEq)]
@@ -69,20 +69,8 @@ pub fn fit(samples: &[Sample], epochs: u32) -> (Gaussian, f64) {
     let mut best: Option<(Gaussian, f64)> = None;
     for width in [5.0f64, 10.0, 20.0] {
         let mut m = Gaussian { p: [2.0, 0.0, width.ln(), 0.0] };
-        let mut opt = Rprop::<4>::default();
-        let mut g = [0.0; 4];
-        let mut loss = m.loss_grad(samples, total, &mut g);
-        for _ in 0..epochs {
-            opt.update(&mut m.p, &g);
-            loss = m.loss_grad(samples, total, &mut g);
-        }
-        let better = match &best {
-            Some((_, b)) => loss < *b,
-            None => true,
-        };
-        if better {
-            best = Some((m, loss));
-        }
+        let loss = Rprop::descend(&mut m.p, epochs, |p, g| Gaussian { p: *p }.loss_grad(samples, total, g), |_, _| {});
+        keep_best(&mut best, m, loss);
     }
     best.expect("three starts")
 }

@@ -121,15 +121,11 @@ pub fn surface_figure(title: &str, kappa: Surface<'_>) -> Canvas {
     frame(&mut c, lx, ly, lw, lh);
     for r in (500..=5500).step_by(1000) {
         let x = lx + ((f64::from(r) - R_LO) / (R_HI - R_LO) * (lw - 1) as f64) as i64;
-        c.line((x, ly + lh), (x, ly + lh + 6), BLACK, 1);
-        let s = r.to_string();
-        c.text(x - Canvas::text_width(&s, 2) / 2, ly + lh + 10, &s, 2, BLACK);
+        x_tick(&mut c, x, ly + lh, &r.to_string());
     }
     for t in (0..=45).step_by(15) {
         let y = ly + lh - 1 - (f64::from(t) / T_HI * (lh - 1) as f64) as i64;
-        c.line((lx - 6, y), (lx, y), BLACK, 1);
-        let s = t.to_string();
-        c.text(lx - 10 - Canvas::text_width(&s, 2), y - 7, &s, 2, BLACK);
+        y_tick(&mut c, lx, y, &t.to_string());
     }
     c.text(lx + lw / 2 - 60, ly + lh + 34, "R (MM)", 2, BLACK);
     c.text(lx - 80, ly - 30, "θ (DEG)", 2, BLACK);
@@ -156,15 +152,11 @@ pub fn surface_figure(title: &str, kappa: Surface<'_>) -> Canvas {
     frame(&mut c, rx, ry, rw, rh);
     for xm in -4i32..=4 {
         let x = x0 + (f64::from(xm) * 1000.0 / scale).round() as i64;
-        c.line((x, ry + rh), (x, ry + rh + 6), BLACK, 1);
-        let s = xm.to_string();
-        c.text(x - Canvas::text_width(&s, 2) / 2, ry + rh + 10, &s, 2, BLACK);
+        x_tick(&mut c, x, ry + rh, &xm.to_string());
     }
     for ym in 0..=5 {
         let y = ry + rh - 1 - (f64::from(ym) * 1000.0 / scale) as i64;
-        c.line((rx - 6, y), (rx, y), BLACK, 1);
-        let s = ym.to_string();
-        c.text(rx - 10 - Canvas::text_width(&s, 2), y - 7, &s, 2, BLACK);
+        y_tick(&mut c, rx, y, &ym.to_string());
     }
     c.text(rx + rw / 2 - 40, ry + rh + 34, "XS (M)", 2, BLACK);
     c.text(rx - 40, ry - 30, "YS (M)", 2, BLACK);
@@ -172,6 +164,18 @@ pub fn surface_figure(title: &str, kappa: Surface<'_>) -> Canvas {
 
     colour_bar(&mut c, 1230, 90, 24, 400);
     c
+}
+
+/// A tick below the x axis at `axis_y`, labelled underneath.
+fn x_tick(c: &mut Canvas, x: i64, axis_y: i64, label: &str) {
+    c.line((x, axis_y), (x, axis_y + 6), BLACK, 1);
+    c.text(x - Canvas::text_width(label, 2) / 2, axis_y + 10, label, 2, BLACK);
+}
+
+/// A tick left of the y axis at `axis_x`, labelled to its left.
+fn y_tick(c: &mut Canvas, axis_x: i64, y: i64, label: &str) {
+    c.line((axis_x - 6, y), (axis_x, y), BLACK, 1);
+    c.text(axis_x - 10 - Canvas::text_width(label, 2), y - 7, label, 2, BLACK);
 }
 
 fn frame(c: &mut Canvas, x: i64, y: i64, w: i64, h: i64) {

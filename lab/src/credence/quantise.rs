@@ -81,6 +81,34 @@ pub struct Provenance {
     pub max_quant_error: f64,
 }
 
+/// One weights constant, as rustfmt lays it out: `w_hidden` pairs, the
+/// `b_hidden` and `w_out` lists, and `b_out`, each value written by `fmt`.
+fn weights_block<T>(
+    w: &mut String,
+    doc: &str,
+    decl: &str,
+    (w_hidden, b_hidden, w_out, b_out): (&[[T; 2]; HIDDEN], &[T; HIDDEN], &[T; HIDDEN], &T),
+    fmt: impl Fn(&T) -> String,
+) {
+    let _ = writeln!(w, "{doc}");
+    let _ = writeln!(w, "{decl}");
+    let _ = writeln!(w, "    w_hidden: [");
+    for pair in w_hidden {
+        let _ = writeln!(w, "        [{}, {}],", fmt(&pair[0]), fmt(&pair[1]));
+    }
+    let _ = writeln!(w, "    ],");
+    for (name, v) in [("b_hidden", b_hidden), ("w_out", w_out)] {
+        let _ = writeln!(w, "    {name}: [");
+        for x in v {
+            let _ = writeln!(w, "        {},", fmt(x));
+        }
+        let _ = writeln!(w, "    ],");
+    }
+    let _ = writeln!(w, "    b_out: {},", fmt(b_out));
+    let _ = writeln!(w, "}};");
+    let _ = writeln!(w);
+}
+
 fn fmt_q(v: I16F16) -> String {
     format!("I16F16::from_bits({})", v.to_bits())
 }
@@ -120,44 +148,20 @@ pub fn weights_source(p: &Provenance, float: &FloatWeights, quant: &QuantWeights
     let _ = writeln!(w);
     let _ = writeln!(w, "use super::net::{{u0f16_table, FloatWeights, QuantWeights, SIGMOID_ENTRIES}};");
     let _ = writeln!(w);
-    let _ = writeln!(w, "/// The trained float weights, for host-side reference (never in firmware unless used).");
-    let _ = writeln!(w, "pub const FLOAT_WEIGHTS: FloatWeights = FloatWeights {{");
-    let _ = writeln!(w, "    w_hidden: [");
-    for j in 0..HIDDEN {
-        let _ = writeln!(w, "        [{:?}, {:?}],", float.w_hidden[j][0], float.w_hidden[j][1]);
-    }
-    let _ = writeln!(w, "    ],");
-    let list = |w: &mut String, name: &str, v: &[f64]| {
-        let _ = writeln!(w, "    {name}: [");
-        for x in v {
-            let _ = writeln!(w, "        {x:?},");
-        }
-        let _ = writeln!(w, "    ],");
-    };
-    list(w, "b_hidden", &float.b_hidden);
-    list(w, "w_out", &float.w_out);
-    let _ = writeln!(w, "    b_out: {:?},", float.b_out);
-    let _ = writeln!(w, "}};");
-    let _ = writeln!(w);
-    let _ = writeln!(w, "/// The shipped net: [`FLOAT_WEIGHTS`] rounded to Q16.16 (nearest, ties away from zero).");
-    let _ = writeln!(w, "pub static SHIPPED_WEIGHTS: QuantWeights = QuantWeights {{");
-    let _ = writeln!(w, "    w_hidden: [");
-    for j in 0..HIDDEN {
-        let _ = writeln!(w, "        [{}, {}],", fmt_q(quant.w_hidden[j][0]), fmt_q(quant.w_hidden[j][1]));
-    }
-    let _ = writeln!(w, "    ],");
-    let qlist = |w: &mut String, name: &str, v: &[I16F16]| {
-        let _ = writeln!(w, "    {name}: [");
-        for x in v {
-            let _ = writeln!(w, "        {},", fmt_q(*x));
-        }
-        let _ = writeln!(w, "    ],");
-    };
-    qlist(w, "b_hidden", &quant.b_hidden);
-    qlist(w, "w_out", &quant.w_out);
-    let _ = writeln!(w, "    b_out: {},", fmt_q(quant.b_out));
-    let _ = writeln!(w, "}};");
-    let _ = writeln!(w);
+    weights_block(
+        w,
+        "/// The trained float weights, for host-side reference (never in firmware unless used).",
+        "pub const FLOAT_WEIGHTS: FloatWeights = FloatWeights {",
+        (&float.w_hidden, &float.b_hidden, &float.w_out, &float.b_out),
+        |x: &f64| format!("{x:?}"),
+    );
+    weights_block(
+        w,
+        "/// The shipped net: [`FLOAT_WEIGHTS`] rounded to Q16.16 (nearest, ties away from zero).",
+        "pub static SHIPPED_WEIGHTS: QuantWeights = QuantWeights {",
+        (&quant.w_hidden, &quant.b_hidden, &quant.w_out, &quant.b_out),
+        |x: &I16F16| fmt_q(*x),
+    );
     let _ = writeln!(w, "/// `L[k] = round(2¹⁶·(1 − σ(k/16)))` for `k = 0 ..= 256`, as Q0.16 bits.");
     let _ = writeln!(w, "const SIGMOID_TAIL_BITS: [u16; SIGMOID_ENTRIES] = [");
     // Packed greedily to 119 columns, as rustfmt lays out an array of short items.

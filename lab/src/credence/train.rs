@@ -190,6 +190,35 @@ impl<const N: usize> Rprop<N> {
     }
 }
 
+impl<const N: usize> Rprop<N> {
+    /// Runs `epochs` updates of `p` with a fresh optimiser: `loss_grad(p, g)`
+    /// returns the loss at `p` and fills its gradient; `on_epoch(epoch, loss)`
+    /// hears each epoch's loss. Returns the loss of the final parameters.
+    pub fn descend(
+        p: &mut [f64; N],
+        epochs: u32,
+        mut loss_grad: impl FnMut(&[f64; N], &mut [f64; N]) -> f64,
+        mut on_epoch: impl FnMut(u32, f64),
+    ) -> f64 {
+        let mut opt = Self::default();
+        let mut g = [0.0; N];
+        let mut loss = loss_grad(p, &mut g);
+        for epoch in 0..epochs {
+            opt.update(p, &g);
+            loss = loss_grad(p, &mut g);
+            on_epoch(epoch, loss);
+        }
+        loss
+    }
+}
+
+/// Keeps `(m, loss)` when it is the first or strictly better than the best so far.
+pub fn keep_best<M>(best: &mut Option<(M, f64)>, m: M, loss: f64) {
+    if best.as_ref().is_none_or(|(_, b)| loss < *b) {
+        *best = Some((m, loss));
+    }
+}
+
 /// What training reports as it goes: (restart, epoch, loss).
 pub type Progress<'a> = &'a mut dyn FnMut(u32, u32, f64);
 
@@ -208,22 +237,13 @@ pub fn train(samples: &[Sample], seed: u64, epochs: u32, restarts: u32, progress
     for restart in 0..restarts.max(1) {
         let mut rng = Rng::new(seed.wrapping_mul(0x2545_F491_4F6C_DD1D).wrapping_add(u64::from(restart)));
         let mut net = Net::random(&mut rng);
-        let mut opt = Rprop::<PARAMS>::default();
-        let mut grad = [0.0; PARAMS];
-        let mut loss = net.loss_grad(&xs, &mut grad);
-        for epoch in 0..epochs {
-            opt.update(&mut net.p, &grad);
-            loss = net.loss_grad(&xs, &mut grad);
-            progress(restart, epoch, loss);
-        }
-        // The loss of the final parameters.
-        let better = match &best {
-            Some((_, b)) => loss < *b,
-            None => true,
-        };
-        if better {
-            best = Some((net, loss));
-        }
+        let loss = Rprop::descend(
+            &mut net.p,
+            epochs,
+            |p, g| Net { p: *p }.loss_grad(&xs, g),
+            |epoch, loss| progress(restart, epoch, loss),
+        );
+        keep_best(&mut best, net, loss);
     }
     best.expect("at least one restart")
 }
