@@ -4,15 +4,10 @@
 //! the weights' source, and a failing command writes nothing.
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Output;
 
-fn lab() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_echoloc-lab"))
-}
-
-fn root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
-}
+mod common;
+use common::{lab, root};
 
 fn tmp(name: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("echoloc-credence-test-{}", std::process::id())).join(name);

@@ -1,21 +1,14 @@
 //! `echoloc-lab map import` end to end: the checked-in firmware blob is what
 //! the importer makes today, and bad inputs fail clearly without writing.
 
-use std::path::{Path, PathBuf};
-use std::process::Command;
+mod common;
 
-fn lab() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_echoloc-lab"))
-}
+use std::path::PathBuf;
 
-fn root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
-}
+use common::{assert_blob_fresh, lab, root};
 
 fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("echoloc-lab-test-{}", std::process::id()));
-    std::fs::create_dir_all(&d).unwrap();
-    d.join(name)
+    common::tmp("lab-test", name)
 }
 
 #[test]
@@ -26,12 +19,11 @@ fn checked_in_firmware_blob_is_fresh() {
     let summary: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert_eq!(summary["polygons"], 9);
     assert_eq!(summary["convex_pieces"], 15);
-    let fresh = std::fs::read(&out).unwrap();
-    assert_eq!(summary["bytes"], fresh.len());
-    let shipped = std::fs::read(root().join("boards/qemu-mps2-an386/office.map")).unwrap();
-    assert!(
-        fresh == shipped,
-        "boards/qemu-mps2-an386/office.map is stale: re-run `cargo run -p echoloc-lab -- map import maps/office.geojson -o boards/qemu-mps2-an386/office.map`"
+    assert_eq!(summary["bytes"], std::fs::metadata(&out).unwrap().len());
+    assert_blob_fresh(
+        &out,
+        "boards/qemu-mps2-an386/office.map",
+        "cargo run -p echoloc-lab -- map import maps/office.geojson -o boards/qemu-mps2-an386/office.map",
     );
     // `map info` loads it as the firmware does and reports the same figures.
     let o = lab().args(["map", "info"]).arg(&out).output().unwrap();

@@ -5,25 +5,18 @@
 //! clearly, naming file and field, and write nothing; the depot blob the
 //! QEMU firmware includes is fresh.
 
+mod common;
+
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
-fn lab() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_echoloc-lab"))
-}
+use common::{assert_blob_fresh, lab, root};
 
-fn root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
+fn tmp(name: &str) -> PathBuf {
+    common::tmp("lab-ros", name)
 }
 
 fn data(name: &str) -> PathBuf {
     root().join("../shared/data/maps").join(name)
-}
-
-fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("echoloc-lab-ros-{}", std::process::id()));
-    std::fs::create_dir_all(&d).unwrap();
-    d.join(name)
 }
 
 fn run_ok(args: &[&str], paths: &[&Path]) -> serde_json::Value {
@@ -208,12 +201,11 @@ fn unknown_as_occupied_wraps_the_known_area() {
 fn checked_in_depot_blob_is_fresh() {
     let out = tmp("depot.map");
     let s = run_ok(&["map", "import", "-o"], &[&out, &data("depot.yaml")]);
-    let fresh = std::fs::read(&out).unwrap();
-    assert_eq!(s["bytes"], fresh.len());
-    let shipped = std::fs::read(root().join("boards/qemu-mps2-an386/depot.map")).unwrap();
-    assert!(
-        fresh == shipped,
-        "boards/qemu-mps2-an386/depot.map is stale: re-run `cargo run -p echoloc-lab -- map import ../shared/data/maps/depot.yaml -o boards/qemu-mps2-an386/depot.map`"
+    assert_eq!(s["bytes"], std::fs::metadata(&out).unwrap().len());
+    assert_blob_fresh(
+        &out,
+        "boards/qemu-mps2-an386/depot.map",
+        "cargo run -p echoloc-lab -- map import ../shared/data/maps/depot.yaml -o boards/qemu-mps2-an386/depot.map",
     );
 }
 

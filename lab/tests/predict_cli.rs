@@ -1,7 +1,9 @@
 //! `echoloc-lab window` and `predict` as DESIGN §7 specifies them.
 
-use std::path::{Path, PathBuf};
 use std::process::Command;
+
+mod common;
+use common::root;
 
 use serde_json::Value;
 
@@ -12,10 +14,6 @@ fn lab(args: &[&str]) -> (bool, String, String) {
         String::from_utf8_lossy(&o.stdout).into_owned(),
         String::from_utf8_lossy(&o.stderr).into_owned(),
     )
-}
-
-fn root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
 }
 
 fn json_lines(s: &str) -> Vec<Value> {

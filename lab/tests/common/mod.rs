@@ -1,0 +1,34 @@
+//! What the lab's CLI tests share: the binary, the repository root, a
+//! per-process scratch folder, and the check that a checked-in firmware
+//! blob is what the importer makes today. Each test binary uses a part.
+#![allow(dead_code)]
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+/// The `echoloc-lab` binary under test.
+pub fn lab() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_echoloc-lab"))
+}
+
+/// The repository root.
+pub fn root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
+}
+
+/// `name` in a scratch folder `echoloc-<prefix>-<pid>` (created) under the
+/// system's temporary directory.
+pub fn tmp(prefix: &str, name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("echoloc-{prefix}-{}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    d.join(name)
+}
+
+/// Asserts that the freshly imported blob `fresh` equals the checked-in
+/// `shipped` (a path from the repository root), naming the command that
+/// regenerates it.
+pub fn assert_blob_fresh(fresh: &Path, shipped: &str, regenerate: &str) {
+    let fresh = std::fs::read(fresh).unwrap();
+    let shipped_bytes = std::fs::read(root().join(shipped)).unwrap();
+    assert!(fresh == shipped_bytes, "{shipped} is stale: re-run `{regenerate}`");
+}
