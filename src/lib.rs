@@ -47,5 +47,6 @@ pub mod driver;
 pub mod geometry;
 pub mod map;
 pub mod predict;
+pub mod referencing;
 pub mod tvector;
 pub mod window;

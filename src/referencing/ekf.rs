@@ -1,0 +1,368 @@
+//! An extended Kalman filter over the robot's pose (x, y, φ): odometry
+//! prediction, sequential range updates on plane and point targets, a χ²
+//! validation gate, κ-weighted measurement variance, the Joseph-form
+//! covariance update, and a *lost* state (DESIGN §4.6).
+//!
+//! Fixed memory (a 3-vector and a 3×3 matrix), no allocation, `f32`.
+//!
+//! ```
+//! use echoloc::referencing::{Ekf, EkfConfig, Motion, MountM, Target, Update};
+//! let mut ekf = Ekf::new([0.0, 0.0, 0.0], [0.05, 0.05, 0.02], EkfConfig::DEFAULT).unwrap();
+//! ekf.predict(&Motion { dx: 1.0, dy: 0.0, dphi: 0.0 }).unwrap();
+//! // A wall 3 m ahead of the start; the forward transducer reads 2.02 m.
+//! let wall = Target::Plane { point: [3.0, 0.0], normal: [-1.0, 0.0] };
+//! let u = ekf.update(2.02, 1.0, MountM { x: 0.0, y: 0.0 }, &wall);
+//! assert!(matches!(u, Update::Accepted { .. }));
+//! assert!(ekf.state()[0] < 1.0); // the reading says the robot is short of 1 m
+//! ```
+
+use super::model::{compose, range_model, wrap, Motion, MountM, Target};
+
+/// Filter settings.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct EkfConfig {
+    /// Variance of the distance travelled, m² per metre.
+    pub var_per_m: f32,
+    /// Variance of the sideways slip, m² per metre.
+    pub var_side_per_m: f32,
+    /// Variance of the heading, rad² per radian turned.
+    pub var_heading_per_rad: f32,
+    /// Variance of the heading, rad² per metre travelled (wheelbase and
+    /// wheel-radius errors turn the robot as it drives).
+    pub var_heading_per_m: f32,
+    /// Range standard deviation of a reading with κ = 1, m.
+    pub sigma_range_m: f32,
+    /// σ² = σ₀² / max(κ, κ_floor).
+    pub kappa_floor: f32,
+    /// χ² gate for one degree of freedom (6.63: 99 %).
+    pub gate: f32,
+    /// The smallest variance kept on the diagonal, so the covariance stays
+    /// positive definite in `f32`.
+    pub min_var: [f32; 3],
+    /// The largest variance on the diagonal: beyond it the filter knows
+    /// nothing and stops growing.
+    pub max_var: [f32; 3],
+    /// Lost: a cycle is *bad* when at least this many readings were tested
+    /// by the gate ...
+    pub lost_min_tested: u16,
+    /// ... and no more than this fraction of them passed ...
+    pub lost_max_accepted: f32,
+    /// ... while the position standard deviation is below this, m ...
+    pub lost_max_sigma_m: f32,
+    /// ... for this many consecutive cycles.
+    pub lost_cycles: u16,
+    /// A lost filter's covariance grows by this factor each cycle, so the
+    /// gate widens until readings validate again.
+    pub lost_inflation: f32,
+}
+
+impl EkfConfig {
+    /// Settings for a Pioneer-class robot and a Polaroid ring: 2 % of
+    /// distance (1σ over a metre: 0.14 m), 2° per radian turned, 25 mm range
+    /// noise at κ = 1, gate at 99 %.
+    pub const DEFAULT: Self = Self {
+        var_per_m: 4e-4,
+        var_side_per_m: 1e-4,
+        var_heading_per_rad: 1.2e-3,
+        var_heading_per_m: 3e-4,
+        sigma_range_m: 0.025,
+        kappa_floor: 0.1,
+        gate: 6.63,
+        min_var: [1e-8, 1e-8, 1e-9],
+        max_var: [100.0, 100.0, 10.0],
+        lost_min_tested: 4,
+        lost_max_accepted: 0.1,
+        lost_max_sigma_m: 0.5,
+        lost_cycles: 3,
+        lost_inflation: 1.5,
+    };
+}
+
+/// Why the filter refused an input.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum EkfError {
+    /// A non-finite or negative number where a finite one is needed.
+    NotFinite,
+}
+
+/// What one range update did.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Update {
+    /// It passed the gate and corrected the state.
+    Accepted {
+        /// Innovation z − h, m.
+        innovation: f32,
+        /// Its normalised square ν²/S.
+        nis: f32,
+    },
+    /// The gate rejected it: the state is unchanged.
+    Gated {
+        /// Innovation z − h, m.
+        innovation: f32,
+        /// Its normalised square ν²/S.
+        nis: f32,
+    },
+    /// Not usable: a non-finite range or κ, or a degenerate model.
+    Unusable,
+}
+
+/// Counts of one ring cycle's updates and what the lost monitor made of them.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct CycleUpdates {
+    /// Readings the gate tested.
+    pub tested: u16,
+    /// Readings it accepted.
+    pub accepted: u16,
+}
+
+/// The filter.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Ekf {
+    x: [f32; 3],
+    p: [[f32; 3]; 3],
+    cfg: EkfConfig,
+    cycle: CycleUpdates,
+    bad_run: u16,
+    lost: bool,
+    lost_count: u32,
+    cycles_lost: u32,
+}
+
+type M3 = [[f32; 3]; 3];
+
+fn mul(a: &M3, b: &M3) -> M3 {
+    let mut r = [[0.0; 3]; 3];
+    for i in 0..3 {
+        for j in 0..3 {
+            r[i][j] = a[i][0] * b[0][j] + a[i][1] * b[1][j] + a[i][2] * b[2][j];
+        }
+    }
+    r
+}
+
+fn mul_t(a: &M3, b: &M3) -> M3 {
+    // a · bᵀ
+    let mut r = [[0.0; 3]; 3];
+    for i in 0..3 {
+        for j in 0..3 {
+            r[i][j] = a[i][0] * b[j][0] + a[i][1] * b[j][1] + a[i][2] * b[j][2];
+        }
+    }
+    r
+}
+
+impl Ekf {
+    /// A filter at pose `x` (m, m, rad) with standard deviations `sigma`.
+    pub fn new(x: [f32; 3], sigma: [f32; 3], cfg: EkfConfig) -> Result<Self, EkfError> {
+        if !x.iter().chain(sigma.iter()).all(|v| v.is_finite()) || sigma.iter().any(|&s| s < 0.0) {
+            return Err(EkfError::NotFinite);
+        }
+        let mut p = [[0.0; 3]; 3];
+        for i in 0..3 {
+            p[i][i] = (sigma[i] * sigma[i]).clamp(cfg.min_var[i], cfg.max_var[i]);
+        }
+        Ok(Self {
+            x: [x[0], x[1], wrap(x[2])],
+            p,
+            cfg,
+            cycle: CycleUpdates::default(),
+            bad_run: 0,
+            lost: false,
+            lost_count: 0,
+            cycles_lost: 0,
+        })
+    }
+
+    /// The state (x m, y m, φ rad).
+    pub fn state(&self) -> [f32; 3] {
+        self.x
+    }
+
+    /// The covariance.
+    pub fn covariance(&self) -> [[f32; 3]; 3] {
+        self.p
+    }
+
+    /// The settings.
+    pub fn config(&self) -> &EkfConfig {
+        &self.cfg
+    }
+
+    /// Odometry prediction: `x ← x ⊕ u`, `P ← F P Fᵀ + G Q Gᵀ` with Q from
+    /// the distance travelled and the angle turned.
+    pub fn predict(&mut self, u: &Motion) -> Result<(), EkfError> {
+        if !u.is_finite() {
+            return Err(EkfError::NotFinite);
+        }
+        let (next, f, g) = compose(&self.x, u);
+        let d = libm::sqrtf(u.dx * u.dx + u.dy * u.dy);
+        let turn = libm::fabsf(u.dphi);
+        let c = &self.cfg;
+        let q = [
+            [c.var_per_m * d, 0.0, 0.0],
+            [0.0, c.var_side_per_m * d, 0.0],
+            [0.0, 0.0, c.var_heading_per_rad * turn + c.var_heading_per_m * d],
+        ];
+        let fp = mul(&f, &self.p);
+        let gq = mul(&g, &q);
+        let a = mul_t(&fp, &f);
+        let b = mul_t(&gq, &g);
+        for i in 0..3 {
+            for j in 0..3 {
+                self.p[i][j] = a[i][j] + b[i][j];
+            }
+        }
+        self.x = next;
+        self.condition();
+        Ok(())
+    }
+
+    /// One range reading `z` (m) with credence `kappa` of `target`, seen by
+    /// the transducer at `mount`: gated, then a sequential scalar update.
+    pub fn update(&mut self, z: f32, kappa: f32, mount: MountM, target: &Target) -> Update {
+        if !(z.is_finite() && kappa.is_finite()) {
+            return Update::Unusable;
+        }
+        let Some((h, hj)) = range_model(&self.x, mount, target) else { return Update::Unusable };
+        let s2 = self.cfg.sigma_range_m * self.cfg.sigma_range_m / kappa.max(self.cfg.kappa_floor);
+        // P Hᵀ and S = H P Hᵀ + R.
+        let mut ph = [0.0f32; 3];
+        for (i, row) in self.p.iter().enumerate() {
+            ph[i] = row[0] * hj[0] + row[1] * hj[1] + row[2] * hj[2];
+        }
+        let s = hj[0] * ph[0] + hj[1] * ph[1] + hj[2] * ph[2] + s2;
+        let nu = z - h;
+        if s.is_nan() || s <= 0.0 || !s.is_finite() {
+            return Update::Unusable;
+        }
+        let nis = nu * nu / s;
+        self.cycle.tested = self.cycle.tested.saturating_add(1);
+        if nis.is_nan() || nis > self.cfg.gate {
+            return Update::Gated { innovation: nu, nis };
+        }
+        self.cycle.accepted = self.cycle.accepted.saturating_add(1);
+        let k = [ph[0] / s, ph[1] / s, ph[2] / s];
+        // Joseph form: P ← (I − K H) P (I − K H)ᵀ + K R Kᵀ.
+        let mut ikh = [[0.0f32; 3]; 3];
+        for i in 0..3 {
+            for j in 0..3 {
+                ikh[i][j] = if i == j { 1.0 } else { 0.0 } - k[i] * hj[j];
+            }
+        }
+        let a = mul_t(&mul(&ikh, &self.p), &ikh);
+        for i in 0..3 {
+            for j in 0..3 {
+                self.p[i][j] = a[i][j] + k[i] * s2 * k[j];
+            }
+        }
+        for (xi, ki) in self.x.iter_mut().zip(k) {
+            *xi += ki * nu;
+        }
+        self.x[2] = wrap(self.x[2]);
+        self.condition();
+        Update::Accepted { innovation: nu, nis }
+    }
+
+    /// Ends a ring cycle: the lost monitor looks at the cycle's gate counts.
+    /// Returns them.
+    pub fn end_cycle(&mut self) -> CycleUpdates {
+        let c = self.cycle;
+        self.cycle = CycleUpdates::default();
+        let sigma = libm::sqrtf(self.p[0][0] + self.p[1][1]);
+        let tested = c.tested >= self.cfg.lost_min_tested;
+        let frac = if c.tested == 0 { 0.0 } else { c.accepted as f32 / c.tested as f32 };
+        if tested && frac <= self.cfg.lost_max_accepted && (self.lost || sigma < self.cfg.lost_max_sigma_m) {
+            self.bad_run = self.bad_run.saturating_add(1);
+        } else if tested || c.accepted > 0 {
+            // Readings validate again (or the filter is unsure enough that
+            // rejections are expected): not lost.
+            self.bad_run = 0;
+            if self.lost && c.accepted >= 2 {
+                self.lost = false;
+            }
+        }
+        if !self.lost && self.bad_run >= self.cfg.lost_cycles {
+            self.lost = true;
+            self.lost_count = self.lost_count.saturating_add(1);
+        }
+        if self.lost {
+            self.cycles_lost = self.cycles_lost.saturating_add(1);
+            let f = self.cfg.lost_inflation;
+            for row in self.p.iter_mut() {
+                for v in row.iter_mut() {
+                    *v *= f;
+                }
+            }
+            self.condition();
+        }
+        c
+    }
+
+    /// Whether the filter is lost now.
+    pub fn is_lost(&self) -> bool {
+        self.lost
+    }
+
+    /// How many times it became lost.
+    pub fn lost_count(&self) -> u32 {
+        self.lost_count
+    }
+
+    /// How many cycles it ended lost.
+    pub fn cycles_lost(&self) -> u32 {
+        self.cycles_lost
+    }
+
+    /// Symmetric, diagonal within its bounds, and every correlation below 1,
+    /// so P stays positive definite in `f32`.
+    fn condition(&mut self) {
+        for i in 0..3 {
+            let d = self.p[i][i];
+            self.p[i][i] =
+                if d.is_finite() { d.clamp(self.cfg.min_var[i], self.cfg.max_var[i]) } else { self.cfg.max_var[i] };
+        }
+        for i in 0..3 {
+            for j in (i + 1)..3 {
+                let mut v = 0.5 * (self.p[i][j] + self.p[j][i]);
+                let lim = 0.999 * libm::sqrtf(self.p[i][i] * self.p[j][j]);
+                if !v.is_finite() {
+                    v = 0.0;
+                }
+                v = v.clamp(-lim, lim);
+                self.p[i][j] = v;
+                self.p[j][i] = v;
+            }
+        }
+        // Pairwise bounds do not make a 3×3 matrix definite: check the
+        // determinant and shrink the correlations until it is positive.
+        for _ in 0..8 {
+            if det(&self.p) > 0.0 {
+                return;
+            }
+            for i in 0..3 {
+                for j in 0..3 {
+                    if i != j {
+                        self.p[i][j] *= 0.5;
+                    }
+                }
+            }
+        }
+        for i in 0..3 {
+            for j in 0..3 {
+                if i != j {
+                    self.p[i][j] = 0.0;
+                }
+            }
+        }
+    }
+}
+
+fn det(p: &M3) -> f32 {
+    p[0][0] * (p[1][1] * p[2][2] - p[1][2] * p[2][1]) - p[0][1] * (p[1][0] * p[2][2] - p[1][2] * p[2][0])
+        + p[0][2] * (p[1][0] * p[2][1] - p[1][1] * p[2][0])
+}

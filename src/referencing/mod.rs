@@ -1,0 +1,26 @@
+//! Self-referencing (paper §5.5, DESIGN §4.6): each reading judged against
+//! its prediction, and the pose corrected, by the paper's threshold method
+//! (the baseline) or by an extended Kalman filter.
+//!
+//! | module | what it does |
+//! |---|---|
+//! | [`verdict`] | a reading against its prediction: confirmed, unknown obstacle, removed or missed, unpredicted echo, nothing as predicted |
+//! | [`model`] | plane and point range models and the odometry motion model, with analytic Jacobians |
+//! | [`ekf`] | the EKF over (x, y, φ): χ² gate, κ-weighted variance, Joseph form, lost state |
+//! | [`threshold`] | the paper's threshold method |
+//!
+//! [`Referencer`] ties them to the predictor for one reading at a time, the
+//! way the firmware runs: predict a transducer at the current estimate in
+//! the gap before it fires, judge its reading, update.
+
+pub mod ekf;
+pub mod model;
+mod referencer;
+pub mod threshold;
+pub mod verdict;
+
+pub use ekf::{CycleUpdates, Ekf, EkfConfig, EkfError, Update};
+pub use model::{compose, range_model, sensor_position, wrap, Motion, MountM, Target};
+pub use referencer::{observe, pose_mm, ReadingReport, Referencer, ReferencerError};
+pub use threshold::{Threshold, ThresholdConfig};
+pub use verdict::{judge, Reading, Verdict, VerdictConfig, VerdictCounts};
