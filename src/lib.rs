@@ -48,5 +48,6 @@ pub mod geometry;
 pub mod map;
 pub mod predict;
 pub mod referencing;
+pub mod scenario;
 pub mod tvector;
 pub mod window;

@@ -23,5 +23,39 @@ const TABLE: [u32; 256] = {
 /// assert_eq!(echoloc::map::crc32(b"123456789"), 0xCBF4_3926);
 /// ```
 pub fn crc32(data: &[u8]) -> u32 {
-    !data.iter().fold(!0u32, |c, &b| TABLE[((c ^ b as u32) & 0xFF) as usize] ^ (c >> 8))
+    let mut c = Crc32::new();
+    c.update(data);
+    c.finish()
+}
+
+/// A CRC-32 over data that arrives in parts (a file written record by record).
+///
+/// ```
+/// let mut c = echoloc::map::Crc32::new();
+/// c.update(b"1234");
+/// c.update(b"56789");
+/// assert_eq!(c.finish(), echoloc::map::crc32(b"123456789"));
+/// ```
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Crc32(u32);
+
+impl Crc32 {
+    /// Nothing seen yet.
+    pub const fn new() -> Self {
+        Self(!0)
+    }
+    /// Takes in `data`.
+    pub fn update(&mut self, data: &[u8]) {
+        self.0 = data.iter().fold(self.0, |c, &b| TABLE[((c ^ b as u32) & 0xFF) as usize] ^ (c >> 8));
+    }
+    /// The CRC of everything taken in.
+    pub const fn finish(self) -> u32 {
+        !self.0
+    }
+}
+
+impl Default for Crc32 {
+    fn default() -> Self {
+        Self::new()
+    }
 }

@@ -18,7 +18,7 @@ mod crc32;
 mod grid;
 
 pub use blob::{BlobError, EncodeError, BLOB_HEADER_LEN, BLOB_MAGIC, BLOB_VERSION};
-pub use crc32::crc32;
+pub use crc32::{crc32, Crc32};
 
 use heapless::Vec;
 
