@@ -16,6 +16,7 @@
 //! assert!(ekf.state()[0] < 1.0); // the reading says the robot is short of 1 m
 //! ```
 
+use super::f32math::sqrt;
 use super::model::{compose, range_model, wrap, Motion, MountM, Target};
 
 /// Filter settings.
@@ -200,23 +201,30 @@ impl Ekf {
             return Err(EkfError::NotFinite);
         }
         let (next, f, g) = compose(&self.x, u);
-        let d = libm::sqrtf(u.dx * u.dx + u.dy * u.dy);
+        let d = sqrt(u.dx * u.dx + u.dy * u.dy);
         let turn = libm::fabsf(u.dphi);
         let c = &self.cfg;
-        let q = [
-            [c.var_per_m * d, 0.0, 0.0],
-            [0.0, c.var_side_per_m * d, 0.0],
-            [0.0, 0.0, c.var_heading_per_rad * turn + c.var_heading_per_m * d],
-        ];
-        let fp = mul(&f, &self.p);
-        let gq = mul(&g, &q);
-        let a = mul_t(&fp, &f);
-        let b = mul_t(&gq, &g);
-        for i in 0..3 {
-            for j in 0..3 {
-                self.p[i][j] = a[i][j] + b[i][j];
-            }
+        let q = [c.var_per_m * d, c.var_side_per_m * d, c.var_heading_per_rad * turn + c.var_heading_per_m * d];
+        // F = I but for column 2 (a, b): F P Fᵀ is a row and a column operation.
+        let (a, b) = (f[0][2], f[1][2]);
+        let p = &mut self.p;
+        let r2 = p[2];
+        for (j, v) in r2.iter().enumerate() {
+            p[0][j] += a * v;
+            p[1][j] += b * v;
         }
+        for row in p.iter_mut() {
+            row[0] += a * row[2];
+            row[1] += b * row[2];
+        }
+        // G = rotation by φ (and 1): G Q Gᵀ for a diagonal Q.
+        let (cs, sn) = (g[0][0], g[1][0]);
+        let cross = cs * sn * (q[0] - q[1]);
+        p[0][0] += cs * cs * q[0] + sn * sn * q[1];
+        p[1][1] += sn * sn * q[0] + cs * cs * q[1];
+        p[0][1] += cross;
+        p[1][0] += cross;
+        p[2][2] += q[2];
         self.x = next;
         self.condition();
         Ok(())
@@ -273,7 +281,7 @@ impl Ekf {
     pub fn end_cycle(&mut self) -> CycleUpdates {
         let c = self.cycle;
         self.cycle = CycleUpdates::default();
-        let sigma = libm::sqrtf(self.p[0][0] + self.p[1][1]);
+        let sigma = sqrt(self.p[0][0] + self.p[1][1]);
         let tested = c.tested >= self.cfg.lost_min_tested;
         let frac = if c.tested == 0 { 0.0 } else { c.accepted as f32 / c.tested as f32 };
         if tested && frac <= self.cfg.lost_max_accepted && (self.lost || sigma < self.cfg.lost_max_sigma_m) {
@@ -329,11 +337,14 @@ impl Ekf {
         for i in 0..3 {
             for j in (i + 1)..3 {
                 let mut v = 0.5 * (self.p[i][j] + self.p[j][i]);
-                let lim = 0.999 * libm::sqrtf(self.p[i][i] * self.p[j][j]);
                 if !v.is_finite() {
                     v = 0.0;
                 }
-                v = v.clamp(-lim, lim);
+                // |ρ| ≤ 0.999, compared in squares: the root only when clamping.
+                let lim2 = 0.998 * self.p[i][i] * self.p[j][j];
+                if v * v > lim2 {
+                    v = if v < 0.0 { -sqrt(lim2) } else { sqrt(lim2) };
+                }
                 self.p[i][j] = v;
                 self.p[j][i] = v;
             }

@@ -1,6 +1,7 @@
 //! Range measurement models (Leonard & Durrant-Whyte, DESIGN §4.6) and the
 //! odometry motion model, with analytic Jacobians. Metres and radians, `f32`.
 
+use super::f32math::{sin_cos, sqrt};
 use crate::geometry::Point;
 use crate::map::Map;
 use crate::predict::{Case, Mount, Prediction};
@@ -44,7 +45,7 @@ impl Target {
         let (a, b) = piece.shape.edge(usize::from(p.edge));
         // Normal from the exact integer direction, normalised once in f32.
         let (ex, ey) = ((b.x as i64 - a.x as i64) as f32, (b.y as i64 - a.y as i64) as f32);
-        let len = libm::sqrtf(ex * ex + ey * ey);
+        let len = sqrt(ex * ex + ey * ey);
         if len == 0.0 {
             return None;
         }
@@ -70,7 +71,7 @@ impl From<&Mount> for MountM {
 /// The transducer's position for robot pose `x` = (x, y, φ) and its
 /// derivative by φ: `pose ∘ mount` carries the mount offset rotated by φ.
 pub fn sensor_position(x: &[f32; 3], m: MountM) -> ([f32; 2], [f32; 2]) {
-    let (s, c) = (libm::sinf(x[2]), libm::cosf(x[2]));
+    let (s, c) = sin_cos(x[2]);
     let p = [x[0] + c * m.x - s * m.y, x[1] + s * m.x + c * m.y];
     let dp = [-s * m.x - c * m.y, c * m.x - s * m.y];
     (p, dp)
@@ -91,7 +92,7 @@ pub fn range_model(x: &[f32; 3], mount: MountM, target: &Target) -> Option<(f32,
         }
         Target::Point { point } => {
             let d = [s[0] - point[0], s[1] - point[1]];
-            let h = libm::sqrtf(d[0] * d[0] + d[1] * d[1]);
+            let h = sqrt(d[0] * d[0] + d[1] * d[1]);
             if h.is_nan() || h <= 1e-6 {
                 return None;
             }
@@ -119,7 +120,7 @@ impl Motion {
     /// `a`'s frame, as a robot's cumulative odometry gives them (θ may be
     /// wrapped or not: the turn is reduced to (−π, π]).
     pub fn between(a: [f32; 3], b: [f32; 3]) -> Self {
-        let (s, c) = (libm::sinf(a[2]), libm::cosf(a[2]));
+        let (s, c) = sin_cos(a[2]);
         let (gx, gy) = (b[0] - a[0], b[1] - a[1]);
         Self { dx: c * gx + s * gy, dy: -s * gx + c * gy, dphi: wrap(b[2] - a[2]) }
     }
@@ -132,7 +133,7 @@ impl Motion {
 
 /// `x ⊕ u`, with its Jacobians by `x` (F) and by `u` (G).
 pub fn compose(x: &[f32; 3], u: &Motion) -> ([f32; 3], [[f32; 3]; 3], [[f32; 3]; 3]) {
-    let (s, c) = (libm::sinf(x[2]), libm::cosf(x[2]));
+    let (s, c) = sin_cos(x[2]);
     let next = [x[0] + c * u.dx - s * u.dy, x[1] + s * u.dx + c * u.dy, wrap(x[2] + u.dphi)];
     let f = [[1.0, 0.0, -s * u.dx - c * u.dy], [0.0, 1.0, c * u.dx - s * u.dy], [0.0, 0.0, 1.0]];
     let g = [[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]];

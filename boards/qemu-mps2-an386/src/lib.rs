@@ -65,6 +65,25 @@ pub fn first_unpainted(from: usize, to: usize) -> usize {
     p
 }
 
+/// Paints the free stack, from its bottom up to the current stack pointer,
+/// with cortex-m-rt's paint value; returns the stack pointer. Inlined into the
+/// caller, so that no frame of its own lies below the pointer it reads.
+#[inline(always)]
+pub fn paint_free_stack(bottom: usize) -> usize {
+    let sp = cortex_m::register::msp::read() as usize;
+    let mut p = bottom;
+    while p < sp {
+        // SAFETY: the words from the stack's bottom up to the stack pointer
+        // are free (no interrupt is enabled), and nothing below it is live.
+        #[allow(unsafe_code)]
+        unsafe {
+            core::ptr::write_volatile(p as *mut u32, cortex_m_rt::STACK_PAINT_VALUE)
+        };
+        p += 4;
+    }
+    sp
+}
+
 /// Bytes of stack ever used, and the stack's size: cortex-m-rt painted
 /// `_stack_end.._stack_start` with `0xCCCC_CCCC` before `main` (feature
 /// `paint-stack`); the lowest overwritten word marks the deepest use.

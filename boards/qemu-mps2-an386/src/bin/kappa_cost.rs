@@ -26,7 +26,7 @@ use cortex_m_semihosting::hprintln;
 use echoloc::credence::net::CredenceNet;
 use echoloc::credence::{Credence, EchoGeometry, Kappa};
 use qemu_mps2_an386::{
-    calibrate, elapsed, exit, first_unpainted, stack_bounds, stack_high_water, start_systick, ticks,
+    calibrate, elapsed, exit, first_unpainted, paint_free_stack, stack_bounds, stack_high_water, start_systick, ticks,
 };
 
 /// Evaluations timed: a 16 × 16 sweep of (R, θ).
@@ -113,25 +113,6 @@ fn main() -> ! {
 #[inline(never)]
 fn kappa_call(net: &CredenceNet<'_>, e: &EchoGeometry) -> Kappa {
     black_box(net).kappa(e)
-}
-
-/// Paints the free stack, from its bottom up to the current stack pointer,
-/// with cortex-m-rt's paint value; returns the stack pointer. Inlined into the
-/// caller, so that no frame of its own lies below the pointer it reads.
-#[inline(always)]
-fn paint_free_stack(bottom: usize) -> usize {
-    let sp = cortex_m::register::msp::read() as usize;
-    let mut p = bottom;
-    while p < sp {
-        // SAFETY: the words from the stack's bottom up to the stack pointer
-        // are free (no interrupt is enabled), and nothing below it is live.
-        #[allow(unsafe_code)]
-        unsafe {
-            core::ptr::write_volatile(p as *mut u32, cortex_m_rt::STACK_PAINT_VALUE)
-        };
-        p += 4;
-    }
-    sp
 }
 
 /// The i-th point of a 16 × 16 sweep over R 500…5500 mm × θ −45…45°.

@@ -1,0 +1,82 @@
+//! `sin`, `cos` and `sqrt` in `f32` arithmetic alone. `libm`'s `sinf` and
+//! `cosf` reduce and evaluate in `f64`, which the Cortex-M4F does in
+//! software (≈ 1 000 instructions a call, measured by `ekf_cost`), and its
+//! `sqrtf` has no ARM intrinsic; these cost tens of instructions with the
+//! single-precision FPU and stay within a few ulp (host tests bound the
+//! error against `f64`).
+
+use core::f32::consts::FRAC_PI_2;
+
+// π/2 split so that k·PIO2_HI is exact for |k| < 2⁸: Cody–Waite reduction.
+const PIO2_HI: f32 = 1.570_312_5; // 201/128, 8 significant bits
+const PIO2_LO: f32 = (core::f64::consts::FRAC_PI_2 - 1.570_312_5) as f32;
+
+/// `(sin a, cos a)`, within 2·10⁻⁷ for |a| ≤ 200 rad (wider angles lose the
+/// reduction's precision: reduce them first).
+pub fn sin_cos(a: f32) -> (f32, f32) {
+    let k = libm::roundf(a / FRAC_PI_2);
+    let r = (a - k * PIO2_HI) - k * PIO2_LO;
+    let r2 = r * r;
+    // Taylor to r⁹ and r¹⁰ on |r| ≤ π/4: the next terms are below 2·10⁻⁹.
+    let s = r * (1.0 + r2 * (-1.0 / 6.0 + r2 * (1.0 / 120.0 + r2 * (-1.0 / 5040.0 + r2 * (1.0 / 362_880.0)))));
+    let c =
+        1.0 + r2 * (-0.5 + r2 * (1.0 / 24.0 + r2 * (-1.0 / 720.0 + r2 * (1.0 / 40_320.0 + r2 * (-1.0 / 3_628_800.0)))));
+    match (k as i32) & 3 {
+        0 => (s, c),
+        1 => (c, -s),
+        2 => (-s, -c),
+        _ => (-c, s),
+    }
+}
+
+/// √x for x ≥ 0 (NaN below), within 1 ulp: Newton's iteration from the
+/// exponent-halving estimate, three steps.
+pub fn sqrt(x: f32) -> f32 {
+    if x.is_nan() || x < 0.0 {
+        return f32::NAN;
+    }
+    if x == 0.0 || x.is_infinite() {
+        return x;
+    }
+    // Subnormals: scale up by 2²⁴ and the root down by 2¹².
+    let (x, scale) = if x < f32::MIN_POSITIVE { (x * 16_777_216.0, 1.0 / 4096.0) } else { (x, 1.0) };
+    let mut y = f32::from_bits(0x1fbd_1df5 + (x.to_bits() >> 1));
+    for _ in 0..3 {
+        y = 0.5 * (y + x / y);
+    }
+    y * scale
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sin_cos_within_bound_against_f64() {
+        let mut worst = 0.0f64;
+        let mut a = -200.0f64;
+        while a <= 200.0 {
+            let (s, c) = sin_cos(a as f32);
+            // Compare at the f32 the function was given.
+            let x = f64::from(a as f32);
+            worst = worst.max((f64::from(s) - libm::sin(x)).abs()).max((f64::from(c) - libm::cos(x)).abs());
+            a += 0.000_7;
+        }
+        assert!(worst <= 2e-7, "worst error {worst}");
+    }
+
+    #[test]
+    fn sqrt_within_an_ulp() {
+        let mut x = 1e-40f32;
+        while x < 1e30 {
+            let r = f64::from(sqrt(x));
+            let e = libm::sqrt(f64::from(x));
+            assert!(((r - e) / e).abs() <= 1.2e-7, "sqrt({x}) = {r}, expected {e}");
+            x *= 1.000_37;
+        }
+        assert_eq!(sqrt(0.0), 0.0);
+        assert!(sqrt(-1.0).is_nan() && sqrt(f32::NAN).is_nan());
+        assert_eq!(sqrt(f32::INFINITY), f32::INFINITY);
+        assert_eq!(sqrt(4.0), 2.0);
+    }
+}
