@@ -42,7 +42,7 @@ cargo test -q --workspace 2>&1 | tee target/host-tests.log
 # One closing line for CI readers: the sum over every test binary.
 awk '/^test result:/ { p += $4; f += $6 } END { printf "host tests: %d passed, %d failed\n", p, f }' target/host-tests.log
 
-step "QEMU firmware runs (timeout in the runner): main, the depot map, one kappa"
+step "QEMU firmware runs (timeout in the runner): main, the depot map, one kappa, the EKF"
 out=$(cargo run -q -p qemu-mps2-an386 --target thumbv7em-none-eabihf --release 2>&1) || {
   echo "$out"
   echo "firmware exited non-zero"
@@ -62,7 +62,7 @@ if [ "$rc" -ne 1 ] || ! grep -q "HardFault at pc" <<<"$fault"; then
   echo "the HardFault handler did not exit with failure (exit code $rc)"
   exit 1
 fi
-for bin in depot kappa_cost; do
+for bin in depot kappa_cost ekf_cost; do
   cargo run -q -p qemu-mps2-an386 --bin "$bin" --target thumbv7em-none-eabihf --release || {
     echo "firmware binary $bin exited non-zero"
     exit 1
