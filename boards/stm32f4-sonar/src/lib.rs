@@ -47,10 +47,10 @@ use core::sync::atomic::{AtomicU32, Ordering};
 
 use cortex_m_rt::{exception, ExceptionFrame};
 use echoloc::credence::net::CredenceNet;
-use echoloc::credence::Kappa;
 use echoloc::driver::{Eeruf, ModuleConfig, Outcome, Ring, RingConfig, RingTiming, SpeedOfSound, Timing};
 use echoloc::map::StandardMap;
 use echoloc::predict::{predict_mount, Pose, PredictError, PredictParams, Prediction, PIONEER16};
+use echoloc::referencing::{self, Reading, Verdict, VerdictConfig, VerdictCounts};
 use echoloc::window::WindowParams;
 use stm32f4xx_hal::gpio::{self, Input, Output, PushPull};
 use stm32f4xx_hal::pac::TIM5;
@@ -132,10 +132,6 @@ impl Clock for Tim5Clock {
     }
 }
 
-/// Below this credence a predicted echo that does not come back is no
-/// evidence against the map (κ = 0.75).
-pub const KAPPA_HIGH: Kappa = Kappa::from_bits(3 << 13);
-
 /// The window and prediction settings for a map buffered by `tb_mm`: MARGE's
 /// window (`R_max` 5.5 m, as the module listens), exact beacon collection,
 /// τ_κ = 0.5, the Polaroid's 30 mm + 1 % tolerance.
@@ -171,137 +167,33 @@ pub fn expect(
     Ok(p.map_or(Expected::Nothing, Expected::Echo))
 }
 
-/// How one reading compares with its prediction.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Verdict {
-    /// The echo is where the map says, within the prediction's tolerance.
-    Confirmed {
-        /// Observed range, mm.
-        range_mm: u32,
-        /// Predicted range, mm.
-        predicted_mm: u32,
-    },
-    /// An echo nearer than anything the map predicts (or where it predicts
-    /// nothing): an obstacle the map does not hold.
-    UnknownObstacle {
-        /// Observed range, mm.
-        range_mm: u32,
-        /// Predicted range, mm, if anything was predicted.
-        predicted_mm: Option<u32>,
-    },
-    /// An echo beyond the predicted surface: the surface did not answer, or
-    /// the pose is off.
-    Farther {
-        /// Observed range, mm.
-        range_mm: u32,
-        /// Predicted range, mm.
-        predicted_mm: u32,
-    },
-    /// No echo where one was predicted with κ ≥ [`KAPPA_HIGH`]: the surface
-    /// is gone, or the pose is off.
-    Missed {
-        /// Predicted range, mm.
-        predicted_mm: u32,
-        /// Its credence, as bits of the Q1.15 κ.
-        kappa_bits: u16,
-    },
-    /// No echo where the predicted echo had κ below [`KAPPA_HIGH`]: the
-    /// sonar may or may not have seen it, so it says nothing.
-    Weak {
-        /// Predicted range, mm.
-        predicted_mm: u32,
-    },
-    /// No echo, and nothing was predicted: the cone is as empty as the map
-    /// says.
-    NothingPredicted,
-    /// Not judged: the echo was not accepted by EERUF (unconfirmed,
-    /// crosstalk), untimed or a fault; or the prediction is missing, or lies
-    /// nearer than the module can range.
-    NotJudged,
-}
+/// The verdict settings of this module: the core's Polaroid defaults with
+/// the blanking BINH leaves ([`MODULE_TIMING`]) and a 1 µs clock.
+pub const VERDICTS: VerdictConfig =
+    VerdictConfig { min_range_mm: MODULE_TIMING.min_range_mm(), ..VerdictConfig::POLAROID };
 
-/// Compares one ring outcome with what was expected for that transducer.
-/// Only echoes EERUF accepted ([`Outcome::Range`]) and clean no-echoes are
-/// judged.
+/// Compares one ring outcome with what was expected for that transducer
+/// (the core's [`echoloc::referencing::judge`]). Only echoes EERUF accepted
+/// ([`Outcome::Range`]) and clean no-echoes are judged; an expectation not
+/// made yet judges nothing.
 pub fn judge(outcome: &Outcome, expected: &Expected) -> Verdict {
-    let p = match expected {
-        Expected::Unknown => return Verdict::NotJudged,
-        Expected::Echo(p) if p.range_mm < MODULE_TIMING.min_range_mm() => return Verdict::NotJudged,
-        Expected::Echo(p) => Some(p),
-        Expected::Nothing => None,
+    let reading = match *outcome {
+        Outcome::Range { range_mm, .. } => Reading::Echo { range_mm },
+        Outcome::NoEcho => Reading::NoEcho,
+        _ => Reading::Invalid,
     };
-    match (outcome, p) {
-        (&Outcome::Range { range_mm, .. }, None) => Verdict::UnknownObstacle { range_mm, predicted_mm: None },
-        (&Outcome::Range { range_mm, .. }, Some(p)) => {
-            let predicted_mm = p.range_mm;
-            if range_mm.abs_diff(predicted_mm) <= p.tolerance_mm {
-                Verdict::Confirmed { range_mm, predicted_mm }
-            } else if range_mm < predicted_mm {
-                Verdict::UnknownObstacle { range_mm, predicted_mm: Some(predicted_mm) }
-            } else {
-                Verdict::Farther { range_mm, predicted_mm }
-            }
-        }
-        (Outcome::NoEcho, None) => Verdict::NothingPredicted,
-        (Outcome::NoEcho, Some(p)) if p.kappa >= KAPPA_HIGH => {
-            Verdict::Missed { predicted_mm: p.range_mm, kappa_bits: p.kappa.to_bits() }
-        }
-        (Outcome::NoEcho, Some(p)) => Verdict::Weak { predicted_mm: p.range_mm },
-        _ => Verdict::NotJudged,
+    match expected {
+        Expected::Unknown => Verdict::Inconclusive,
+        Expected::Nothing => referencing::judge(reading, None, &VERDICTS),
+        Expected::Echo(p) => referencing::judge(reading, Some(p), &VERDICTS),
     }
 }
 
-/// Verdicts counted over one ring cycle.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct CycleTally {
-    /// [`Verdict::Confirmed`].
-    pub confirmed: u8,
-    /// [`Verdict::UnknownObstacle`].
-    pub unknown_obstacle: u8,
-    /// [`Verdict::Farther`].
-    pub farther: u8,
-    /// [`Verdict::Missed`].
-    pub missed: u8,
-    /// [`Verdict::Weak`].
-    pub weak: u8,
-    /// [`Verdict::NothingPredicted`].
-    pub nothing_predicted: u8,
-    /// [`Verdict::NotJudged`].
-    pub not_judged: u8,
-    /// The latest firing in the cycle, µs after its slot time. Above
-    /// [`RingTiming::late_limit_us`] the loop (a prediction) overran the
-    /// ring-down gap and the schedule re-anchored.
-    pub worst_late_us: u32,
-}
-
-impl CycleTally {
-    /// Counts one verdict and the lateness of its firing.
-    pub fn add(&mut self, v: &Verdict, late_us: u32) {
-        let n = match v {
-            Verdict::Confirmed { .. } => &mut self.confirmed,
-            Verdict::UnknownObstacle { .. } => &mut self.unknown_obstacle,
-            Verdict::Farther { .. } => &mut self.farther,
-            Verdict::Missed { .. } => &mut self.missed,
-            Verdict::Weak { .. } => &mut self.weak,
-            Verdict::NothingPredicted => &mut self.nothing_predicted,
-            Verdict::NotJudged => &mut self.not_judged,
-        };
-        *n = n.saturating_add(1);
-        self.worst_late_us = self.worst_late_us.max(late_us);
-    }
-
-    /// Readings judged against the map (all but [`Verdict::NotJudged`] and
-    /// [`Verdict::Weak`]).
-    pub fn judged(&self) -> u8 {
-        self.confirmed + self.unknown_obstacle + self.farther + self.missed + self.nothing_predicted
-    }
-
-    /// At least half the judged readings agreed with the map (and some were
-    /// judged).
-    pub fn map_agrees(&self) -> bool {
-        let agree = u16::from(self.confirmed) + u16::from(self.nothing_predicted);
-        self.judged() > 0 && 2 * agree >= u16::from(self.judged())
-    }
+/// At least half the judged readings of a cycle agreed with the map (and
+/// some were judged).
+pub fn map_agrees(v: &VerdictCounts) -> bool {
+    let agree = v.confirmed + v.nothing_as_predicted;
+    v.judged() > 0 && 2 * agree >= v.judged()
 }
 
 /// The network the firmware rates predictions with: the shipped quantised

@@ -20,9 +20,10 @@ use cortex_m_rt::entry;
 use echoloc::driver::{Error, Module, Ring, Schedule};
 use echoloc::map::StandardMap;
 use echoloc::predict::Pose;
+use echoloc::referencing::VerdictCounts;
 use static_cell::ConstStaticCell;
 use stm32f4_sonar::{
-    credence, expect, judge, predict_params, CycleTally, Expected, SonarRing, Tim5Clock, MODULE_TIMING, RING_TIMING,
+    credence, expect, judge, map_agrees, predict_params, Expected, SonarRing, Tim5Clock, MODULE_TIMING, RING_TIMING,
     TRANSDUCERS,
 };
 use stm32f4xx_hal::pac;
@@ -83,7 +84,7 @@ fn main() -> ! {
     let refresh = |expected: &mut [Expected; TRANSDUCERS], t: u8| {
         expected[usize::from(t)] = expect(map, &pose, t, &params, &net).unwrap_or(Expected::Unknown);
     };
-    let mut tally = CycleTally::default();
+    let mut tally = VerdictCounts::default();
     if let Some(t) = ring.schedule().transducer(0) {
         refresh(&mut expected, t);
     }
@@ -96,7 +97,7 @@ fn main() -> ! {
             Err(Error::Pin(never)) => match never {},
             Err(_) => {
                 let _ = ring.reset();
-                tally = CycleTally::default();
+                tally = VerdictCounts::default();
                 if let Some(t) = ring.schedule().transducer(0) {
                     refresh(&mut expected, t);
                 }
@@ -104,7 +105,7 @@ fn main() -> ! {
             }
         };
         let verdict = judge(&reading.outcome, &expected[usize::from(reading.transducer)]);
-        tally.add(&verdict, reading.late_us);
+        tally.add(verdict);
 
         // The ring is now in its ring-down gap: predict the transducer that
         // fires next, from the pose estimate as it is now.
@@ -115,7 +116,7 @@ fn main() -> ! {
 
         if next_slot == TRANSDUCERS {
             // A whole cycle: show it, start counting the next.
-            if tally.map_agrees() {
+            if map_agrees(&tally) {
                 ok_led.set_high();
             } else {
                 ok_led.set_low();
@@ -125,7 +126,7 @@ fn main() -> ! {
             } else {
                 obstacle_led.set_low();
             }
-            tally = CycleTally::default();
+            tally = VerdictCounts::default();
         }
     }
 }
