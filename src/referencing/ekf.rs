@@ -349,10 +349,12 @@ impl Ekf {
                 self.p[j][i] = v;
             }
         }
-        // Pairwise bounds do not make a 3×3 matrix definite: check the
-        // determinant and shrink the correlations until it is positive.
+        // Pairwise bounds do not make a 3×3 matrix definite: factor it as
+        // L D Lᵀ and shrink the correlations until every pivot keeps a
+        // margin of its variance (a determinant's sign is lost to rounding
+        // when P is nearly singular; pivots with a margin are not).
         for _ in 0..8 {
-            if det(&self.p) > 0.0 {
+            if pivots_ok(&self.p) {
                 return;
             }
             for i in 0..3 {
@@ -373,7 +375,17 @@ impl Ekf {
     }
 }
 
-fn det(p: &M3) -> f32 {
-    p[0][0] * (p[1][1] * p[2][2] - p[1][2] * p[2][1]) - p[0][1] * (p[1][0] * p[2][2] - p[1][2] * p[2][0])
-        + p[0][2] * (p[1][0] * p[2][1] - p[1][1] * p[2][0])
+/// Every pivot of P = L D Lᵀ at least 10⁻⁴ of its diagonal entry: P is
+/// positive definite with room for `f32` rounding.
+fn pivots_ok(p: &M3) -> bool {
+    const MARGIN: f32 = 1e-4;
+    let d0 = p[0][0];
+    let (l10, l20) = (p[1][0] / d0, p[2][0] / d0);
+    let d1 = p[1][1] - l10 * p[1][0];
+    if d1.is_nan() || d1 <= MARGIN * p[1][1] {
+        return false;
+    }
+    let l21 = (p[2][1] - l20 * p[1][0]) / d1;
+    let d2 = p[2][2] - l20 * p[2][0] - l21 * l21 * d1;
+    d0 > 0.0 && d2 > MARGIN * p[2][2]
 }

@@ -147,9 +147,11 @@ pub fn wrap(a: f32) -> f32 {
         return a;
     }
     let r = a - 2.0 * PI * libm::floorf((a + PI) / (2.0 * PI));
-    // floorf rounding can leave −π: move it to π.
+    // floorf rounding can leave the result a hair outside: fold it back.
     if r <= -PI {
         r + 2.0 * PI
+    } else if r > PI {
+        r - 2.0 * PI
     } else {
         r
     }

@@ -5,7 +5,7 @@
 //! Our reading: on a reading that matches a credible beacon (κ ≥ τ and
 //! |R_obs − R_calc| within an association window), when the difference
 //! exceeds the threshold the pose moves at once by the smallest step (in a
-//! metric that weighs heading by a lever arm) that makes the predicted range
+//! metric that weighs heading by a lever arm) that makes the linearised range
 //! equal the observed one: Δ = W Hᵀ (z − h) / (H W Hᵀ). No covariance, no
 //! memory of earlier readings: that is what makes it crude.
 //!
