@@ -5,6 +5,8 @@
 mod credence;
 mod map;
 mod predict;
+mod scenario;
+mod simulate;
 
 use std::process::ExitCode;
 
@@ -28,6 +30,11 @@ enum Cmd {
     Predict(predict::PredictArgs),
     /// Credence data: run the physical sonar model as the paper's experiment, one CSV per day.
     Synth(credence::SynthArgs),
+    /// Self-referencing in a simulated world: a route, odometry, a physical sonar, verdicts, threshold method and EKF.
+    Simulate(simulate::SimulateArgs),
+    /// Scenario files: replay one on the host through the same filters.
+    #[command(subcommand)]
+    Scenario(scenario::ScenarioCmd),
     /// Credence net: leave-one-day-out evaluation against the Gaussian baseline, training, quantisation, figures.
     Train(credence::TrainArgs),
 }
@@ -61,6 +68,8 @@ fn run(cmd: Cmd) -> Result<String, map::LabError> {
         Cmd::Window(a) => predict::window_cmd(&a),
         Cmd::Predict(a) => predict::predict_cmd(&a),
         Cmd::Synth(a) => credence::synth_cmd(&a).map_err(|e| map::LabError(e.to_string())),
+        Cmd::Simulate(a) => simulate::simulate_cmd(&a),
+        Cmd::Scenario(c) => scenario::run(c),
         Cmd::Train(a) => credence::train_cmd(&a).map_err(|e| map::LabError(e.to_string())),
     }
 }

@@ -141,16 +141,22 @@ fn triple(s: &str, what: &str) -> Result<(f64, f64, f64), LabError> {
 
 /// Loads MAP in any of its three forms into the firmware's map.
 pub fn load_map(path: &Path, buffer_mm: u32) -> Result<Box<StandardMap>, LabError> {
-    let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
-    if ext == "map" {
-        return Ok(map::load_blob(path)?.0);
-    }
-    let shapes = map::read_shapes(path)?;
-    let blob = map::build_map(&shapes, buffer_mm, 1000).map_err(|e| LabError(format!("{}: {e}", path.display())))?.0;
-    map::blob_to_map(&blob, path)
+    Ok(load_map_and_blob(path, buffer_mm)?.0)
 }
 
-fn ring_mounts(spec: &str) -> Result<Vec<Mount>, LabError> {
+/// [`load_map`], with the blob the map was loaded from (read, or built here).
+pub fn load_map_and_blob(path: &Path, buffer_mm: u32) -> Result<(Box<StandardMap>, Vec<u8>), LabError> {
+    let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
+    let blob = if ext == "map" {
+        std::fs::read(path).map_err(|e| LabError(format!("{}: {e}", path.display())))?
+    } else {
+        let shapes = map::read_shapes(path)?;
+        map::build_map(&shapes, buffer_mm, 1000).map_err(|e| LabError(format!("{}: {e}", path.display())))?.0
+    };
+    Ok((map::blob_to_map(&blob, path)?, blob))
+}
+
+pub fn ring_mounts(spec: &str) -> Result<Vec<Mount>, LabError> {
     if spec == "pioneer16" {
         return Ok(PIONEER16.to_vec());
     }

@@ -65,18 +65,18 @@ impl EkfConfig {
     pub const DEFAULT: Self = Self {
         var_per_m: 4e-4,
         var_side_per_m: 1e-4,
-        var_heading_per_rad: 1.2e-3,
-        var_heading_per_m: 3e-4,
-        sigma_range_m: 0.025,
+        var_heading_per_rad: 1e-4,
+        var_heading_per_m: 1e-4,
+        sigma_range_m: 0.015,
         kappa_floor: 0.1,
         gate: 6.63,
         min_var: [1e-8, 1e-8, 1e-9],
         max_var: [100.0, 100.0, 10.0],
-        lost_min_tested: 4,
+        lost_min_tested: 6,
         lost_max_accepted: 0.1,
         lost_max_sigma_m: 0.5,
-        lost_cycles: 3,
-        lost_inflation: 1.5,
+        lost_cycles: 5,
+        lost_inflation: 1.0,
     };
 }
 

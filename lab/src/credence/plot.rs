@@ -30,7 +30,7 @@ impl Canvas {
         }
     }
 
-    fn rect(&mut self, x: i64, y: i64, w: i64, h: i64, c: Rgb) {
+    pub fn rect(&mut self, x: i64, y: i64, w: i64, h: i64, c: Rgb) {
         for yy in y..y + h {
             for xx in x..x + w {
                 self.set(xx, yy, c);
@@ -38,7 +38,7 @@ impl Canvas {
         }
     }
 
-    fn line(&mut self, (x0, y0): (i64, i64), (x1, y1): (i64, i64), c: Rgb, thick: i64) {
+    pub fn line(&mut self, (x0, y0): (i64, i64), (x1, y1): (i64, i64), c: Rgb, thick: i64) {
         let n = (x1 - x0).abs().max((y1 - y0).abs()).max(1);
         for k in 0..=n {
             let x = x0 + (x1 - x0) * k / n;
@@ -48,7 +48,7 @@ impl Canvas {
     }
 
     /// Text at (x, y) top-left, `scale` pixels per font dot; returns its width.
-    fn text(&mut self, x: i64, y: i64, s: &str, scale: i64, c: Rgb) -> i64 {
+    pub fn text(&mut self, x: i64, y: i64, s: &str, scale: i64, c: Rgb) -> i64 {
         let mut cx = x;
         for ch in s.chars() {
             let g = glyph(ch);
@@ -64,7 +64,7 @@ impl Canvas {
         cx - x
     }
 
-    fn text_width(s: &str, scale: i64) -> i64 {
+    pub fn text_width(s: &str, scale: i64) -> i64 {
         s.chars().count() as i64 * 6 * scale
     }
 
@@ -273,7 +273,7 @@ pub fn profile_figure(title: &str, ranges_mm: &[u32], series: &[Series<'_>]) -> 
 
 /// A 5×7 glyph, one byte per row, bit 4 the leftmost dot. Lower case is
 /// drawn as upper case; unknown characters as a blank.
-fn glyph(ch: char) -> [u8; 7] {
+pub fn glyph(ch: char) -> [u8; 7] {
     let rows: &str = match ch.to_ascii_uppercase() {
         '0' => "01110 10001 10011 10101 11001 10001 01110",
         '1' => "00100 01100 00100 00100 00100 00100 01110",

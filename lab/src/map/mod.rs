@@ -11,7 +11,7 @@
 mod build;
 mod contour;
 mod geojson;
-mod render;
+pub mod render;
 mod ros;
 mod simplify;
 

@@ -45,7 +45,8 @@ pub fn geojson(m: &StandardMap) -> Value {
 }
 
 /// An RGB canvas with a map-frame transform.
-struct Canvas {
+/// A picture in map millimetres (y up), for previews and the simulator's figures.
+pub struct Canvas {
     w: usize,
     h: usize,
     px: Vec<[u8; 3]>,
@@ -71,7 +72,7 @@ impl Canvas {
     }
 
     /// A line in map mm, `width` pixels wide.
-    fn line(&mut self, a: (f64, f64), b: (f64, f64), c: [u8; 3], width: i64) {
+    pub fn line(&mut self, a: (f64, f64), b: (f64, f64), c: [u8; 3], width: i64) {
         let (p, q) = (self.to_px(a.0, a.1), self.to_px(b.0, b.1));
         let n = ((q.0 - p.0).abs().max((q.1 - p.1).abs()).ceil() as usize).max(1);
         let r = width / 2;
@@ -87,7 +88,7 @@ impl Canvas {
     }
 
     /// Fills a counter-clockwise convex polygon given in map mm.
-    fn fill_convex(&mut self, v: &[(f64, f64)], c: [u8; 3], a: f64) {
+    pub fn fill_convex(&mut self, v: &[(f64, f64)], c: [u8; 3], a: f64) {
         let p: Vec<(f64, f64)> = v.iter().map(|&(x, y)| self.to_px(x, y)).collect();
         let (xmin, xmax) = p.iter().fold((f64::MAX, f64::MIN), |(lo, hi), q| (lo.min(q.0), hi.max(q.0)));
         let (ymin, ymax) = p.iter().fold((f64::MAX, f64::MIN), |(lo, hi), q| (lo.min(q.1), hi.max(q.1)));
@@ -107,7 +108,27 @@ impl Canvas {
         }
     }
 
-    fn png(&self) -> Vec<u8> {
+    /// Text at pixel (x, y) top-left, `scale` pixels per font dot.
+    pub fn text(&mut self, x: i64, y: i64, s: &str, scale: i64, c: [u8; 3]) {
+        for (k, ch) in s.chars().enumerate() {
+            let g = crate::credence::plot::glyph(ch);
+            for (row, bits) in g.iter().enumerate() {
+                for col in 0..5 {
+                    if bits & (0x10 >> col) != 0 {
+                        for dy in 0..scale {
+                            for dx in 0..scale {
+                                let px = x + (k as i64 * 6 + col) * scale + dx;
+                                self.blend(px, y + row as i64 * scale + dy, c, 1.0);
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    /// The canvas as an RGB PNG.
+    pub fn png(&self) -> Vec<u8> {
         let mut out = Vec::new();
         let mut enc = png::Encoder::new(&mut out, self.w as u32, self.h as u32);
         enc.set_color(png::ColorType::Rgb);
@@ -135,6 +156,11 @@ const BUFFER: [u8; 3] = [0, 170, 80];
 /// (blue: edges that no other piece of the obstacle shares). Without a grid
 /// the map's own bounds, with a 1 m margin, on white.
 pub fn preview(m: &StandardMap, grid: Option<&Grid>, unknown: Unknown) -> Vec<u8> {
+    preview_canvas(m, grid, unknown).png()
+}
+
+/// [`preview`] before it is encoded, to draw on.
+pub fn preview_canvas(m: &StandardMap, grid: Option<&Grid>, unknown: Unknown) -> Canvas {
     let mut cv = match grid {
         Some(g) => {
             let res = g.yaml.resolution * 1000.0;
@@ -240,5 +266,5 @@ pub fn preview(m: &StandardMap, grid: Option<&Grid>, unknown: Unknown) -> Vec<u8
             }
         }
     }
-    cv.png()
+    cv
 }

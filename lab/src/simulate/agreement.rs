@@ -1,0 +1,95 @@
+//! How well the predictor and the simulator's independent sonar agree:
+//! every reading predicted again at the *true* pose, and compared where the
+//! predictor is confident and the scene is clean. A measurement, not a
+//! construction: the two share no geometry code (DESIGN §4.7).
+
+use echoloc::credence::net::CredenceNet;
+use echoloc::map::StandardMap;
+use echoloc::predict::{predict_mount, Mount, Pose};
+use serde_json::{json, Value};
+
+use super::filters::predict_params;
+use super::world::{EchoSource, SimReading};
+
+/// The agreement counts.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Agreement {
+    /// Clean readings (consistent with the map) whose prediction at the true
+    /// pose has κ ≥ the confidence mark.
+    pub confident: u64,
+    /// ... of which the reading is within the prediction's tolerance.
+    pub within: u64,
+    /// ... of which nothing came back.
+    pub silent: u64,
+    /// Clean readings with nothing predicted at the true pose.
+    pub nothing_predicted: u64,
+    /// ... of which nothing came back either.
+    pub nothing_read: u64,
+}
+
+impl Agreement {
+    /// `within / confident`.
+    pub fn fraction(&self) -> Option<f64> {
+        (self.confident > 0).then(|| self.within as f64 / self.confident as f64)
+    }
+
+    /// As JSON.
+    pub fn json(&self) -> Value {
+        json!({
+            "confident": self.confident,
+            "within_tolerance": self.within,
+            "fraction": self.fraction().map(|f| (f * 1e4).round() / 1e4),
+            "silent": self.silent,
+            "nothing_predicted": self.nothing_predicted,
+            "nothing_read": self.nothing_read,
+        })
+    }
+}
+
+/// Predicts every clean reading at its true pose and counts agreement;
+/// `kappa_min` is the confidence mark.
+pub fn measure(map: &StandardMap, mounts: &[Mount], readings: &[SimReading], kappa_min: f32) -> Agreement {
+    let net = CredenceNet::shipped();
+    let params = predict_params(map);
+    let mut a = Agreement::default();
+    for r in readings.iter().filter(|r| r.consistent && !matches!(r.source, EchoSource::Crosstalk | EchoSource::Noise))
+    {
+        let Some(mount) = mounts.get(usize::from(r.transducer)) else { continue };
+        let pose = Pose {
+            x_mm: (r.truth.0 * 1000.0) as f32,
+            y_mm: (r.truth.1 * 1000.0) as f32,
+            heading_rad: r.truth.2 as f32,
+        };
+        let Ok((p, _)) = predict_mount(map, &pose, mount, &params, &net) else { continue };
+        match p {
+            Some(p) if p.kappa.to_num::<f32>() >= kappa_min => {
+                a.confident += 1;
+                match r.range_mm {
+                    Some(z) if z.abs_diff(p.range_mm) <= p.tolerance_mm + 1 => a.within += 1,
+                    Some(z) if std::env::var("ECHOLOC_DEBUG3").is_ok() => eprintln!(
+                        "DIS z {z} pred {} {:?} k {:.2} th {} d {} src {:?} maponly {:?}",
+                        p.range_mm,
+                        p.case,
+                        p.kappa.to_num::<f32>(),
+                        p.theta_mdeg,
+                        p.delta_mdeg,
+                        r.source,
+                        r.map_only_range_mm
+                    ),
+                    None => a.silent += 1,
+                    _ => {}
+                }
+            }
+            Some(_) => {}
+            None => {
+                a.nothing_predicted += 1;
+                if r.range_mm.is_none() {
+                    a.nothing_read += 1;
+                } else if std::env::var("ECHOLOC_DEBUG3").is_ok() {
+                    eprintln!("NOPRED z {:?} src {:?}", r.range_mm, r.source);
+                }
+            }
+        }
+    }
+    a
+}

@@ -1,0 +1,265 @@
+//! The run through the core, reading by reading, as the firmware runs it:
+//! dead reckoning from the odometry alone; the paper's threshold method on
+//! its own predictions; and the EKF ([`Referencer`]) with the quantised
+//! credence net, predicting each transducer at the current estimate before
+//! judging its reading.
+
+use echoloc::credence::net::CredenceNet;
+use echoloc::driver::SpeedOfSound;
+use echoloc::map::StandardMap;
+use echoloc::predict::{Mount, PredictParams};
+use echoloc::referencing::{
+    observe, pose_mm, Ekf, EkfConfig, Motion, MountM, Reading, Referencer, Threshold, ThresholdConfig, Update, Verdict,
+    VerdictConfig, VerdictCounts,
+};
+use echoloc::scenario::{Header, Record};
+use echoloc::window::WindowParams;
+
+/// The three estimates.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Methods {
+    /// Odometry alone.
+    DeadReckoning,
+    /// The paper's threshold method.
+    Threshold,
+    /// The EKF.
+    Ekf,
+}
+
+/// What the EKF's verdict said of one reading, for detection scores.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Judged {
+    /// Flagged an unmapped object (an unknown obstacle, or an echo where nothing was predicted).
+    pub unknown: bool,
+    /// Flagged a removed obstacle or a missed echo.
+    pub removed: bool,
+    /// The obstacle the prediction named.
+    pub predicted_obstacle: Option<u16>,
+}
+
+/// Error figures of one estimate against the truth, over every reading.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Errors {
+    /// Position RMSE, m.
+    pub position_rmse_m: f64,
+    /// Heading RMSE, degrees.
+    pub heading_rmse_deg: f64,
+    /// Largest position error, m.
+    pub max_position_m: f64,
+    /// At the end, m.
+    pub final_position_m: f64,
+    /// At the end, degrees.
+    pub final_heading_deg: f64,
+}
+
+/// Everything the run produced, one entry per reading.
+#[derive(Clone, Debug, Default)]
+pub struct Trace {
+    /// Firing times, s.
+    pub times: Vec<f64>,
+    /// True poses (x m, y m, φ rad).
+    pub truth: Vec<[f64; 3]>,
+    /// Dead reckoning.
+    pub dead_reckoning: Vec<[f64; 3]>,
+    /// The threshold method.
+    pub threshold: Vec<[f64; 3]>,
+    /// The EKF.
+    pub ekf: Vec<[f64; 3]>,
+    /// The EKF's position standard deviation, m.
+    pub ekf_sigma_m: Vec<f64>,
+    /// The EKF's verdicts.
+    pub verdicts: VerdictCounts,
+    /// Per reading, for detection scores.
+    pub judged: Vec<Judged>,
+    /// Readings the EKF accepted.
+    pub accepted: u64,
+    /// Readings its gate rejected.
+    pub gated: u64,
+    /// Times it became lost.
+    pub lost_count: u32,
+    /// Times it stopped being lost.
+    pub lost_cleared: u32,
+    /// Cycles it ended lost.
+    pub cycles_lost: u32,
+    /// Readings that moved the threshold method's pose.
+    pub threshold_corrections: u32,
+    /// True distance driven, m.
+    pub distance_m: f64,
+    /// Duration, s.
+    pub duration_s: f64,
+}
+
+fn wrap(a: f64) -> f64 {
+    (a + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI
+}
+
+impl Trace {
+    fn track(&self, m: Methods) -> &[[f64; 3]] {
+        match m {
+            Methods::DeadReckoning => &self.dead_reckoning,
+            Methods::Threshold => &self.threshold,
+            Methods::Ekf => &self.ekf,
+        }
+    }
+
+    /// Position and heading errors of `m` at each reading, m and degrees.
+    pub fn error_series(&self, m: Methods) -> Vec<(f64, f64)> {
+        self.track(m)
+            .iter()
+            .zip(&self.truth)
+            .map(|(e, t)| ((e[0] - t[0]).hypot(e[1] - t[1]), wrap(e[2] - t[2]).to_degrees()))
+            .collect()
+    }
+
+    /// Error figures of `m`.
+    pub fn errors(&self, m: Methods) -> Errors {
+        let s = self.error_series(m);
+        let n = s.len().max(1) as f64;
+        let (p2, h2) = s.iter().fold((0.0, 0.0), |(a, b), (p, h)| (a + p * p, b + h * h));
+        let last = s.last().copied().unwrap_or_default();
+        Errors {
+            position_rmse_m: (p2 / n).sqrt(),
+            heading_rmse_deg: (h2 / n).sqrt(),
+            max_position_m: s.iter().map(|e| e.0).fold(0.0, f64::max),
+            final_position_m: last.0,
+            final_heading_deg: last.1.abs(),
+        }
+    }
+}
+
+/// The prediction settings of the boards: MARGE's window on the map's buffer.
+pub fn predict_params(map: &StandardMap) -> PredictParams {
+    PredictParams::new(WindowParams { tb_mm: map.buffer_mm(), ..WindowParams::MARGE })
+}
+
+fn compose(x: [f64; 3], u: &Motion) -> [f64; 3] {
+    let (s, c) = x[2].sin_cos();
+    let (dx, dy) = (f64::from(u.dx), f64::from(u.dy));
+    [x[0] + c * dx - s * dy, x[1] + s * dx + c * dy, wrap(x[2] + f64::from(u.dphi))]
+}
+
+fn f64x3(v: [f32; 3]) -> [f64; 3] {
+    v.map(f64::from)
+}
+
+/// Runs every record through the three estimates.
+pub fn run(
+    map: &StandardMap,
+    mounts: &[Mount],
+    header: &Header,
+    records: &[Record],
+    progress: &mut dyn FnMut(f64),
+) -> Result<Trace, String> {
+    let net = CredenceNet::shipped();
+    let params = predict_params(map);
+    let sound = SpeedOfSound::from_um_per_s(header.speed_um_per_s).map_err(|e| format!("speed of sound: {e:?}"))?;
+    let verdicts = VerdictConfig::POLAROID;
+    let ekf = Ekf::new(header.start, header.start_sigma, EkfConfig::DEFAULT).map_err(|e| format!("start: {e:?}"))?;
+    let mut ekf = Referencer::new(ekf, verdicts);
+    let mut thr = Threshold::new(header.start, ThresholdConfig::DEFAULT);
+    let mut dr = f64x3(header.start);
+    let mut t = Trace::default();
+    let mut cycle = records.first().map_or(0, |r| r.cycle);
+    let mut was_lost = false;
+    let mut prev_truth: Option<[f64; 3]> = None;
+    // Firing times wrap at 2³² µs (71 min): unwrap them.
+    let (mut last_us, mut epoch) = (records.first().map_or(0, |r| r.time_us), 0u64);
+    for (i, r) in records.iter().enumerate() {
+        if r.cycle != cycle {
+            let (vc, cu) = ekf.end_cycle();
+            let lost = ekf.ekf.is_lost();
+            if std::env::var("ECHOLOC_DEBUG2").is_ok() {
+                let x = ekf.ekf.state();
+                let tr = t.truth.last().copied().unwrap_or_default();
+                let p = ekf.ekf.covariance();
+                eprintln!("cycle {cycle} t {:.1} err {:.3} {:.2}deg sig {:.3} {:.3} {:.2}deg tested {} acc {} lost {lost} v {:?}", t.times.last().copied().unwrap_or(0.0), (x[0] as f64 - tr[0]).hypot(x[1] as f64 - tr[1]), (x[2] as f64 - tr[2]).to_degrees(), p[0][0].sqrt(), p[1][1].sqrt(), p[2][2].sqrt().to_degrees(), cu.tested, cu.accepted, vc);
+            }
+            if was_lost && !lost {
+                t.lost_cleared += 1;
+            }
+            was_lost = lost;
+            cycle = r.cycle;
+        }
+        let mount = mounts
+            .get(usize::from(r.transducer))
+            .ok_or_else(|| format!("record {i}: no transducer {}", r.transducer))?;
+        let u = Motion { dx: r.odometry[0], dy: r.odometry[1], dphi: r.odometry[2] };
+        dr = compose(dr, &u);
+        thr.predict(&u);
+        ekf.odometry(&u).map_err(|e| format!("record {i}: {e:?}"))?;
+        let reading = match r.echo_us {
+            Some(us) => Reading::Echo { range_mm: sound.range_mm(us) },
+            None => Reading::NoEcho,
+        };
+        // The threshold method predicts from its own pose.
+        let o = observe(map, &pose_mm(thr.state()), mount, &params, &net, reading, &verdicts)
+            .map_err(|e| format!("record {i}: {e:?}"))?;
+        if let (Reading::Echo { range_mm }, Some(p), Some(target)) = (reading, o.prediction, o.target) {
+            thr.update(range_mm as f32 / 1000.0, p.kappa.to_num::<f32>(), MountM::from(mount), &target);
+        }
+        let before = ekf.ekf.state();
+        let pb = ekf.ekf.covariance();
+        let rep = ekf.reading(map, mount, &params, &net, reading).map_err(|e| format!("record {i}: {e:?}"))?;
+        if std::env::var("ECHOLOC_DEBUG").is_ok() {
+            let after = ekf.ekf.state();
+            let dh = (after[2] - before[2]).abs().to_degrees();
+            let err = (
+                (after[0] as f64 - r.truth[0] as f64).hypot(after[1] as f64 - r.truth[1] as f64),
+                (after[2] - r.truth[2]).to_degrees(),
+            );
+            if dh > 1.0 || (after[0] - before[0]).hypot(after[1] - before[1]) > 0.1 {
+                eprintln!("rec {i} t{} dh {dh:.2} dpos {:.3} err {:?} P {:.4} {:.4} {:.5} upd {:?} pred {:?} reading {:?} lost {}", r.transducer, (after[0]-before[0]).hypot(after[1]-before[1]), err, pb[0][0].sqrt(), pb[1][1].sqrt(), pb[2][2].sqrt(), rep.update, rep.prediction.map(|p| (p.range_mm, p.case, p.kappa.to_num::<f32>(), p.theta_mdeg, p.delta_mdeg)), reading, ekf.ekf.is_lost());
+            }
+        }
+        if std::env::var("ECHOLOC_DEBUG4").is_ok() {
+            if let (Some(p), Some(u)) = (rep.prediction, rep.update) {
+                let (acc, nu, nis) = match u {
+                    Update::Accepted { innovation, nis } => (1, innovation, nis),
+                    Update::Gated { innovation, nis } => (0, innovation, nis),
+                    _ => (2, 0.0, 0.0),
+                };
+                eprintln!("UPD {:?} {acc} {nu:.4} {nis:.3} {} {}", p.case, p.delta_mdeg, p.theta_mdeg);
+            }
+        }
+        match rep.update {
+            Some(Update::Accepted { .. }) => t.accepted += 1,
+            Some(Update::Gated { .. }) => t.gated += 1,
+            _ => {}
+        }
+        t.judged.push(Judged {
+            unknown: matches!(rep.verdict, Verdict::UnknownObstacle | Verdict::Unpredicted),
+            removed: rep.verdict == Verdict::RemovedOrMissed,
+            predicted_obstacle: rep.prediction.map(|p| p.obstacle),
+        });
+        let truth = f64x3(r.truth);
+        if let Some(p) = prev_truth {
+            t.distance_m += (truth[0] - p[0]).hypot(truth[1] - p[1]);
+        }
+        prev_truth = Some(truth);
+        if r.time_us < last_us {
+            epoch += 1 << 32;
+        }
+        last_us = r.time_us;
+        t.times.push((epoch + u64::from(r.time_us)) as f64 / 1e6);
+        t.truth.push(truth);
+        t.dead_reckoning.push(dr);
+        t.threshold.push(f64x3(thr.state()));
+        let x = ekf.ekf.state();
+        t.ekf.push(f64x3(x));
+        let p = ekf.ekf.covariance();
+        t.ekf_sigma_m.push(f64::from(p[0][0] + p[1][1]).sqrt());
+        if i % 256 == 0 {
+            progress(i as f64 / records.len().max(1) as f64);
+        }
+    }
+    ekf.end_cycle();
+    if was_lost && !ekf.ekf.is_lost() {
+        t.lost_cleared += 1;
+    }
+    t.verdicts = ekf.totals();
+    t.lost_count = ekf.ekf.lost_count();
+    t.cycles_lost = ekf.ekf.cycles_lost();
+    t.threshold_corrections = thr.corrections();
+    t.duration_s = t.times.last().copied().unwrap_or(0.0) - t.times.first().copied().unwrap_or(0.0);
+    Ok(t)
+}

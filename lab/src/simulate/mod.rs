@@ -1,0 +1,305 @@
+//! `echoloc-lab simulate`: a route through the map, wheel odometry, a
+//! physical sonar independent of the predictor ([`world`]), and the core's
+//! verdicts, threshold method and EKF run on the readings ([`filters`]), the
+//! way the firmware runs them; figures ([`figures`]), a JSON report and a
+//! scenario file for the boards.
+
+pub mod agreement;
+pub mod figures;
+pub mod filters;
+pub mod world;
+
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+use clap::Args;
+use echoloc::driver::SpeedOfSound;
+use echoloc::referencing::Motion;
+use echoloc::scenario::{self, Header, Record};
+use serde_json::{json, Value};
+
+use crate::map::{write_atomically, LabError};
+use crate::predict::{load_map_and_blob, ring_mounts};
+use filters::{Methods, Trace};
+use world::{EchoSource, SimRun, WorldConfig};
+
+/// `simulate`.
+#[derive(Args)]
+pub struct SimulateArgs {
+    /// The map: a blob (.map), a ROS map_server .yaml or a .geojson.
+    #[arg(long)]
+    map: PathBuf,
+    /// Seed of every random draw.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Route length, m.
+    #[arg(long = "distance-m", default_value_t = 200.0)]
+    distance_m: f64,
+    /// Fraction of readings inconsistent with the map (unmapped people and
+    /// furniture, mapped obstacles removed), 0..=1.
+    #[arg(long, default_value_t = 0.5)]
+    inconsistent: f64,
+    /// The ring: pioneer16, or a JSON file of [x_m, y_m, heading_deg] per transducer.
+    #[arg(long, default_value = "pioneer16")]
+    ring: String,
+    /// C-space buffer for a .yaml or .geojson map, mm.
+    #[arg(long = "buffer-mm", default_value_t = 100)]
+    buffer_mm: u32,
+    /// One JSON object (the default prints the same, indented).
+    #[arg(long)]
+    json: bool,
+    /// Writes the map with the paths to OUT.png and the error over time to OUT-error.png.
+    #[arg(long)]
+    plot: Option<PathBuf>,
+    /// Writes the run as a binary scenario (docs/scenario.md).
+    #[arg(long)]
+    scenario: Option<PathBuf>,
+}
+
+/// κ at and above which the predictor counts as confident when its
+/// agreement with the simulated sonar is measured.
+pub const AGREEMENT_KAPPA: f32 = 0.9;
+
+/// The filter starts at the true pose with these standard deviations (m, m, rad).
+pub const START_SIGMA: [f32; 3] = [0.05, 0.05, 0.0349];
+/// The pass bounds, written into a scenario: 5 cm and 1° RMSE.
+pub const BOUNDS: (f32, f32) = (0.05, 1.0);
+
+pub fn simulate_cmd(a: &SimulateArgs) -> Result<String, LabError> {
+    if !(a.distance_m.is_finite() && a.distance_m > 0.0) {
+        return Err(LabError(format!("--distance-m {}: must be a positive number", a.distance_m)));
+    }
+    if !(0.0..=1.0).contains(&a.inconsistent) {
+        return Err(LabError(format!("--inconsistent {}: must be within 0..=1", a.inconsistent)));
+    }
+    for p in a.plot.iter().chain(a.scenario.iter()) {
+        check_writable(p)?;
+    }
+    let mounts = ring_mounts(&a.ring)?;
+    let (map, blob) = load_map_and_blob(&a.map, a.buffer_mm)?;
+    let map_crc = echoloc::map::crc32(&blob);
+    let cfg = WorldConfig::new(a.seed, a.distance_m, a.inconsistent, mounts.clone());
+    let mut bar = Progress::new();
+    let run = world::simulate_world(&map, &cfg, &mut |f| bar.set(0.5 * f))
+        .map_err(|e| LabError(format!("{}: {e}", a.map.display())))?;
+    let records = to_records(&run)?;
+    let header = header(&run, map_crc, &records);
+    let trace = filters::run(&map, &mounts, &header, &records, &mut |f| bar.set(0.5 + 0.5 * f))
+        .map_err(|e| LabError(format!("{}: {e}", a.map.display())))?;
+    bar.finish();
+    let mut report = report(&trace, Some(&run));
+    let agreement = agreement::measure(&map, &mounts, &run.readings, AGREEMENT_KAPPA);
+    if let Some(o) = report.as_object_mut() {
+        o.insert("agreement".into(), agreement.json());
+    }
+    // Everything is computed before anything is written.
+    if let Some(p) = &a.scenario {
+        let mut bytes = Vec::new();
+        scenario::write(&header, &mounts, &records, |b| bytes.extend_from_slice(b))
+            .map_err(|e| LabError(format!("--scenario {}: {e:?}", p.display())))?;
+        write_atomically(p, &bytes)?;
+    }
+    if let Some(p) = &a.plot {
+        let (paths, errors) = figures::draw(&map, &run, &trace);
+        write_atomically(p, &paths)?;
+        write_atomically(&error_plot_path(p), &errors)?;
+    }
+    Ok(if a.json { report.to_string() } else { serde_json::to_string_pretty(&report).unwrap_or_default() })
+}
+
+fn check_writable(p: &Path) -> Result<(), LabError> {
+    let dir = p.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    if !dir.is_dir() {
+        return Err(LabError(format!("{}: folder {} does not exist", p.display(), dir.display())));
+    }
+    Ok(())
+}
+
+/// `OUT.png` → `OUT-error.png`.
+pub fn error_plot_path(p: &Path) -> PathBuf {
+    let stem = p.file_stem().and_then(|s| s.to_str()).unwrap_or("simulate");
+    p.with_file_name(format!("{stem}-error.png"))
+}
+
+/// The run as the firmware would see it: odometry increments in `f32` (what
+/// the scenario stores, so a replay uses the very same numbers) and echo
+/// times.
+pub fn to_records(run: &SimRun) -> Result<Vec<Record>, LabError> {
+    let mut prev = run.readings.first().map(|r| r.odometry);
+    run.readings
+        .iter()
+        .map(|r| {
+            let (a, b) = (prev.unwrap_or(r.odometry), r.odometry);
+            prev = Some(b);
+            if ![b.0, b.1, b.2, r.truth.0, r.truth.1, r.truth.2].iter().all(|v| v.is_finite()) {
+                return Err(LabError(format!("cycle {}: non-finite odometry or pose", r.cycle)));
+            }
+            let u = motion_f64(a, b);
+            Ok(Record {
+                time_us: ((r.time_s * 1e6).round() as u64 & 0xFFFF_FFFF) as u32,
+                cycle: r.cycle,
+                transducer: r.transducer,
+                slot: r.slot,
+                echo_us: r.echo_us.filter(|&t| t > 0),
+                odometry: [u.dx, u.dy, u.dphi],
+                truth: [r.truth.0 as f32, r.truth.1 as f32, r.truth.2 as f32],
+            })
+        })
+        .collect()
+}
+
+/// The odometry increment from `a` to `b` in `a`'s frame, computed in `f64`
+/// (cumulative poses far from the origin lose the increment in `f32`).
+fn motion_f64(a: (f64, f64, f64), b: (f64, f64, f64)) -> Motion {
+    let (s, c) = a.2.sin_cos();
+    let (gx, gy) = (b.0 - a.0, b.1 - a.1);
+    let turn = (b.2 - a.2 + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI;
+    Motion { dx: (c * gx + s * gy) as f32, dy: (-s * gx + c * gy) as f32, dphi: turn as f32 }
+}
+
+fn header(run: &SimRun, map_crc: u32, records: &[Record]) -> Header {
+    let start = records.first().map_or([0.0; 3], |r| r.truth);
+    Header {
+        map_crc,
+        speed_um_per_s: DRIVER_SOUND.um_per_s(),
+        period_us: (run.period_s * 1e6).round() as u32,
+        slot_us: run.slot_s.map_or(0, |s| (s * 1e6).round() as u32),
+        start,
+        start_sigma: START_SIGMA,
+        bound_position_m: BOUNDS.0,
+        bound_heading_deg: BOUNDS.1,
+    }
+}
+
+/// The speed of sound the driver converts echo times with: 20 °C.
+pub const DRIVER_SOUND: SpeedOfSound = match SpeedOfSound::at_centi_celsius(2000) {
+    Ok(s) => s,
+    Err(_) => panic!("20 °C is within the driver's range"),
+};
+
+fn ratio(n: u64, d: u64) -> Value {
+    if d == 0 {
+        Value::Null
+    } else {
+        json!(round4(n as f64 / d as f64))
+    }
+}
+
+fn round4(v: f64) -> f64 {
+    (v * 1e4).round() / 1e4
+}
+
+/// The JSON report: errors of each method, verdicts and lost counts, and,
+/// with the simulator's truth, detection scores and the clutter.
+pub fn report(t: &Trace, run: Option<&SimRun>) -> Value {
+    let method = |m: Methods| {
+        let e = t.errors(m);
+        json!({
+            "position_rmse_m": round4(e.position_rmse_m),
+            "heading_rmse_deg": round4(e.heading_rmse_deg),
+            "max_position_error_m": round4(e.max_position_m),
+            "final_position_error_m": round4(e.final_position_m),
+            "final_heading_error_deg": round4(e.final_heading_deg),
+        })
+    };
+    let v = &t.verdicts;
+    let mut out = json!({
+        "readings": t.times.len(),
+        "distance_m": round4(t.distance_m),
+        "duration_s": round4(t.duration_s),
+        "dead_reckoning": method(Methods::DeadReckoning),
+        "threshold": {
+            "corrections": t.threshold_corrections,
+            "errors": method(Methods::Threshold),
+        },
+        "ekf": {
+            "accepted": t.accepted,
+            "gated": t.gated,
+            "lost_raised": t.lost_count,
+            "lost_cleared": t.lost_cleared,
+            "cycles_lost": t.cycles_lost,
+            "errors": method(Methods::Ekf),
+        },
+        "verdicts": {
+            "confirmed": v.confirmed,
+            "unknown_obstacle": v.unknown_obstacle,
+            "removed_or_missed": v.removed_or_missed,
+            "unpredicted": v.unpredicted,
+            "nothing_as_predicted": v.nothing_as_predicted,
+            "inconclusive": v.inconclusive,
+            "confirmed_fraction": ratio(u64::from(v.confirmed), u64::from(v.total())),
+        },
+        "lost": {"raised": t.lost_count, "cleared": t.lost_cleared, "cycles_lost": t.cycles_lost},
+    });
+    let Some(run) = run else { return out };
+    // Detection against the simulator's truth: an echo from an unmapped
+    // object is an unknown obstacle; a prediction on a removed obstacle is a
+    // removed one.
+    let (mut uo_tp, mut uo_fp, mut uo_fn, mut rm_tp, mut rm_fp, mut rm_fn) = (0u64, 0u64, 0u64, 0u64, 0u64, 0u64);
+    for (r, j) in run.readings.iter().zip(&t.judged) {
+        let truly_unknown = r.source == EchoSource::Unmapped;
+        match (j.unknown, truly_unknown) {
+            (true, true) => uo_tp += 1,
+            (true, false) => uo_fp += 1,
+            (false, true) => uo_fn += 1,
+            _ => {}
+        }
+        let truly_removed = j.predicted_obstacle.is_some_and(|o| run.removed_obstacles.contains(&o));
+        match (j.removed, truly_removed) {
+            (true, true) => rm_tp += 1,
+            (true, false) => rm_fp += 1,
+            (false, true) => rm_fn += 1,
+            _ => {}
+        }
+    }
+    let consistent = run.readings.iter().filter(|r| r.consistent).count();
+    let extra = json!({
+        "cycles": run.cycles,
+        "inconsistent_fraction": round4(1.0 - consistent as f64 / run.readings.len().max(1) as f64),
+        "removed_obstacles": run.removed_obstacles.len(),
+        "unmapped_objects": run.unmapped.len(),
+        "people": run.people.len(),
+        "detection": {
+            "unknown_obstacle": {"precision": ratio(uo_tp, uo_tp + uo_fp), "recall": ratio(uo_tp, uo_tp + uo_fn),
+                                  "true_positives": uo_tp, "false_positives": uo_fp, "false_negatives": uo_fn},
+            "removed_obstacle": {"precision": ratio(rm_tp, rm_tp + rm_fp), "recall": ratio(rm_tp, rm_tp + rm_fn),
+                                  "true_positives": rm_tp, "false_positives": rm_fp, "false_negatives": rm_fn},
+        },
+    });
+    if let (Some(o), Value::Object(e)) = (out.as_object_mut(), extra) {
+        o.extend(e);
+    }
+    out
+}
+
+/// A progress bar on stderr, shown only once a run has taken a second.
+struct Progress {
+    start: Instant,
+    bar: Option<indicatif::ProgressBar>,
+}
+
+impl Progress {
+    fn new() -> Self {
+        Self { start: Instant::now(), bar: None }
+    }
+
+    fn set(&mut self, f: f64) {
+        if self.bar.is_none() && self.start.elapsed() > Duration::from_secs(1) {
+            let b = indicatif::ProgressBar::with_draw_target(Some(1000), indicatif::ProgressDrawTarget::stderr());
+            b.set_style(
+                indicatif::ProgressStyle::with_template("simulate [{bar:40}] {percent:>3}% {elapsed}")
+                    .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+            );
+            self.bar = Some(b);
+        }
+        if let Some(b) = &self.bar {
+            b.set_position((f.clamp(0.0, 1.0) * 1000.0) as u64);
+        }
+    }
+
+    fn finish(&mut self) {
+        if let Some(b) = self.bar.take() {
+            b.finish_and_clear();
+        }
+    }
+}
