@@ -172,6 +172,9 @@ pub fn ring_mounts(spec: &str) -> Result<Vec<Mount>, LabError> {
             if !(x.is_finite() && y.is_finite() && d.is_finite()) || x.abs() > 100.0 || y.abs() > 100.0 {
                 return Err(LabError(format!("--ring {spec}: transducer {i}: position beyond ±100 m or not finite")));
             }
+            if d.abs() > 360.0 {
+                return Err(LabError(format!("--ring {spec}: transducer {i}: heading {d}° beyond ±360°")));
+            }
             Ok(Mount {
                 x_mm: (x * 1000.0).round() as i32,
                 y_mm: (y * 1000.0).round() as i32,

@@ -46,10 +46,10 @@ pub fn run(cmd: ScenarioCmd) -> Result<String, LabError> {
 fn replay(a: &ReplayArgs) -> Result<String, LabError> {
     let bytes = std::fs::read(&a.scenario).map_err(|e| LabError(format!("{}: {e}", a.scenario.display())))?;
     let s = Scenario::parse(&bytes)
-        .map_err(|e| LabError(format!("{}: not a valid scenario: {e:?}", a.scenario.display())))?;
+        .map_err(|e| LabError(format!("{}: not a valid scenario: {e}", a.scenario.display())))?;
     let (map, blob) = load_map_and_blob(&a.map, a.buffer_mm)?;
     s.check_map(echoloc::map::crc32(&blob)).map_err(|e| {
-        LabError(format!("{}: made on another map than {}: {e:?}", a.scenario.display(), a.map.display()))
+        LabError(format!("{}: made on another map than {} (MapMismatch): {e}", a.scenario.display(), a.map.display()))
     })?;
     let mounts: Vec<Mount> = (0..s.transducers()).filter_map(|i| s.mount(i)).collect();
     let records: Vec<Record> = s.records().collect();

@@ -36,6 +36,9 @@ pub struct EkfConfig {
     pub sigma_range_m: f32,
     /// σ² = σ₀² / max(κ, κ_floor).
     pub kappa_floor: f32,
+    /// A point target's variance is this many times a plane's: the echo of
+    /// a corner or a clipped edge end comes from near the point, not from it.
+    pub point_variance_scale: f32,
     /// χ² gate for one degree of freedom (6.63: 99 %).
     pub gate: f32,
     /// The smallest variance kept on the diagonal, so the covariance stays
@@ -69,6 +72,7 @@ impl EkfConfig {
         var_heading_per_m: 1e-4,
         sigma_range_m: 0.015,
         kappa_floor: 0.1,
+        point_variance_scale: 4.0,
         gate: 6.63,
         min_var: [1e-8, 1e-8, 1e-9],
         max_var: [100.0, 100.0, 10.0],
@@ -237,7 +241,10 @@ impl Ekf {
             return Update::Unusable;
         }
         let Some((h, hj)) = range_model(&self.x, mount, target) else { return Update::Unusable };
-        let s2 = self.cfg.sigma_range_m * self.cfg.sigma_range_m / kappa.max(self.cfg.kappa_floor);
+        let mut s2 = self.cfg.sigma_range_m * self.cfg.sigma_range_m / kappa.max(self.cfg.kappa_floor);
+        if let Target::Point { .. } = target {
+            s2 *= self.cfg.point_variance_scale;
+        }
         // P Hᵀ and S = H P Hᵀ + R.
         let mut ph = [0.0f32; 3];
         for (i, row) in self.p.iter().enumerate() {

@@ -139,7 +139,7 @@ pub enum ScenarioError {
         /// The map given.
         found: u32,
     },
-    /// The writer's sink was given fewer or more records than the header.
+    /// More records than the format counts (2³² − 1).
     Count,
 }
 
@@ -158,6 +158,29 @@ fn mount_ok(m: &Mount) -> bool {
         && m.y_mm.unsigned_abs() <= MAX_MOUNT_MM as u32
         && m.heading_mdeg.unsigned_abs() <= 360_000
 }
+
+impl core::fmt::Display for ScenarioError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match *self {
+            Self::Length => write!(f, "truncated, or not a whole number of records"),
+            Self::Magic => write!(f, "not a scenario (no ECSN magic)"),
+            Self::Version(v) => write!(f, "version {v}, this reader takes {VERSION}"),
+            Self::Layout => write!(f, "header sizes disagree (transducers, header or record length)"),
+            Self::Crc { stored, computed } => {
+                write!(f, "damaged: CRC {computed:#010x} does not match the stored {stored:#010x}")
+            }
+            Self::Header => write!(f, "a header field out of range"),
+            Self::Mount(i) => write!(f, "mount {i} out of range (beyond ±100 m or ±360°)"),
+            Self::Record(i) => write!(f, "record {i} malformed"),
+            Self::MapMismatch { expected, found } => {
+                write!(f, "made on the map with CRC {expected:#010x}, not this one ({found:#010x})")
+            }
+            Self::Count => write!(f, "more records than a scenario holds"),
+        }
+    }
+}
+
+impl core::error::Error for ScenarioError {}
 
 fn u16_at(b: &[u8], o: usize) -> u16 {
     u16::from_le_bytes([b[o], b[o + 1]])

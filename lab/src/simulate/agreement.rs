@@ -9,7 +9,7 @@ use echoloc::predict::{predict_mount, Mount, Pose};
 use serde_json::{json, Value};
 
 use super::filters::predict_params;
-use super::world::{EchoSource, SimReading};
+use super::world::{EchoKind, EchoSource, SimReading};
 
 /// The agreement counts.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -21,6 +21,15 @@ pub struct Agreement {
     pub within: u64,
     /// ... of which nothing came back.
     pub silent: u64,
+    /// ... of which a nearer echo came back, from a face of a mapped
+    /// obstacle (one the predictor's δ or κ tests rejected) ...
+    pub nearer_face: u64,
+    /// ... from an inside corner ...
+    pub nearer_corner: u64,
+    /// ... from an outside edge (diffraction, which the predictor does not model).
+    pub nearer_edge: u64,
+    /// ... of which the echo came from farther than predicted.
+    pub farther: u64,
     /// Clean readings with nothing predicted at the true pose.
     pub nothing_predicted: u64,
     /// ... of which nothing came back either.
@@ -40,6 +49,10 @@ impl Agreement {
             "within_tolerance": self.within,
             "fraction": self.fraction().map(|f| (f * 1e4).round() / 1e4),
             "silent": self.silent,
+            "nearer_face": self.nearer_face,
+            "nearer_inside_corner": self.nearer_corner,
+            "nearer_outside_edge": self.nearer_edge,
+            "farther": self.farther,
             "nothing_predicted": self.nothing_predicted,
             "nothing_read": self.nothing_read,
         })
@@ -66,18 +79,14 @@ pub fn measure(map: &StandardMap, mounts: &[Mount], readings: &[SimReading], kap
                 a.confident += 1;
                 match r.range_mm {
                     Some(z) if z.abs_diff(p.range_mm) <= p.tolerance_mm + 1 => a.within += 1,
-                    Some(z) if std::env::var("ECHOLOC_DEBUG3").is_ok() => eprintln!(
-                        "DIS z {z} pred {} {:?} k {:.2} th {} d {} src {:?} maponly {:?}",
-                        p.range_mm,
-                        p.case,
-                        p.kappa.to_num::<f32>(),
-                        p.theta_mdeg,
-                        p.delta_mdeg,
-                        r.source,
-                        r.map_only_range_mm
-                    ),
                     None => a.silent += 1,
-                    _ => {}
+                    Some(z) if z > p.range_mm => a.farther += 1,
+                    Some(_) => match r.source {
+                        EchoSource::Mapped { kind: EchoKind::Face, .. } => a.nearer_face += 1,
+                        EchoSource::Mapped { kind: EchoKind::InsideCorner, .. } => a.nearer_corner += 1,
+                        EchoSource::Mapped { kind: EchoKind::OutsideEdge, .. } => a.nearer_edge += 1,
+                        _ => {}
+                    },
                 }
             }
             Some(_) => {}
@@ -85,8 +94,6 @@ pub fn measure(map: &StandardMap, mounts: &[Mount], readings: &[SimReading], kap
                 a.nothing_predicted += 1;
                 if r.range_mm.is_none() {
                     a.nothing_read += 1;
-                } else if std::env::var("ECHOLOC_DEBUG3").is_ok() {
-                    eprintln!("NOPRED z {:?} src {:?}", r.range_mm, r.source);
                 }
             }
         }

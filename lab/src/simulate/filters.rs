@@ -166,14 +166,8 @@ pub fn run(
     let (mut last_us, mut epoch) = (records.first().map_or(0, |r| r.time_us), 0u64);
     for (i, r) in records.iter().enumerate() {
         if r.cycle != cycle {
-            let (vc, cu) = ekf.end_cycle();
+            ekf.end_cycle();
             let lost = ekf.ekf.is_lost();
-            if std::env::var("ECHOLOC_DEBUG2").is_ok() {
-                let x = ekf.ekf.state();
-                let tr = t.truth.last().copied().unwrap_or_default();
-                let p = ekf.ekf.covariance();
-                eprintln!("cycle {cycle} t {:.1} err {:.3} {:.2}deg sig {:.3} {:.3} {:.2}deg tested {} acc {} lost {lost} v {:?}", t.times.last().copied().unwrap_or(0.0), (x[0] as f64 - tr[0]).hypot(x[1] as f64 - tr[1]), (x[2] as f64 - tr[2]).to_degrees(), p[0][0].sqrt(), p[1][1].sqrt(), p[2][2].sqrt().to_degrees(), cu.tested, cu.accepted, vc);
-            }
             if was_lost && !lost {
                 t.lost_cleared += 1;
             }
@@ -197,30 +191,7 @@ pub fn run(
         if let (Reading::Echo { range_mm }, Some(p), Some(target)) = (reading, o.prediction, o.target) {
             thr.update(range_mm as f32 / 1000.0, p.kappa.to_num::<f32>(), MountM::from(mount), &target);
         }
-        let before = ekf.ekf.state();
-        let pb = ekf.ekf.covariance();
         let rep = ekf.reading(map, mount, &params, &net, reading).map_err(|e| format!("record {i}: {e:?}"))?;
-        if std::env::var("ECHOLOC_DEBUG").is_ok() {
-            let after = ekf.ekf.state();
-            let dh = (after[2] - before[2]).abs().to_degrees();
-            let err = (
-                (after[0] as f64 - r.truth[0] as f64).hypot(after[1] as f64 - r.truth[1] as f64),
-                (after[2] - r.truth[2]).to_degrees(),
-            );
-            if dh > 1.0 || (after[0] - before[0]).hypot(after[1] - before[1]) > 0.1 {
-                eprintln!("rec {i} t{} dh {dh:.2} dpos {:.3} err {:?} P {:.4} {:.4} {:.5} upd {:?} pred {:?} reading {:?} lost {}", r.transducer, (after[0]-before[0]).hypot(after[1]-before[1]), err, pb[0][0].sqrt(), pb[1][1].sqrt(), pb[2][2].sqrt(), rep.update, rep.prediction.map(|p| (p.range_mm, p.case, p.kappa.to_num::<f32>(), p.theta_mdeg, p.delta_mdeg)), reading, ekf.ekf.is_lost());
-            }
-        }
-        if std::env::var("ECHOLOC_DEBUG4").is_ok() {
-            if let (Some(p), Some(u)) = (rep.prediction, rep.update) {
-                let (acc, nu, nis) = match u {
-                    Update::Accepted { innovation, nis } => (1, innovation, nis),
-                    Update::Gated { innovation, nis } => (0, innovation, nis),
-                    _ => (2, 0.0, 0.0),
-                };
-                eprintln!("UPD {:?} {acc} {nu:.4} {nis:.3} {} {}", p.case, p.delta_mdeg, p.theta_mdeg);
-            }
-        }
         match rep.update {
             Some(Update::Accepted { .. }) => t.accepted += 1,
             Some(Update::Gated { .. }) => t.gated += 1,

@@ -33,11 +33,11 @@ pub struct SimulateArgs {
     #[arg(long, default_value_t = 1)]
     seed: u64,
     /// Route length, m.
-    #[arg(long = "distance-m", default_value_t = 200.0)]
+    #[arg(long = "distance-m", default_value_t = 200.0, allow_hyphen_values = true)]
     distance_m: f64,
     /// Fraction of readings inconsistent with the map (unmapped people and
     /// furniture, mapped obstacles removed), 0..=1.
-    #[arg(long, default_value_t = 0.5)]
+    #[arg(long, default_value_t = 0.5, allow_hyphen_values = true)]
     inconsistent: f64,
     /// The ring: pioneer16, or a JSON file of [x_m, y_m, heading_deg] per transducer.
     #[arg(long, default_value = "pioneer16")]
@@ -60,6 +60,9 @@ pub struct SimulateArgs {
 /// agreement with the simulated sonar is measured.
 pub const AGREEMENT_KAPPA: f32 = 0.9;
 
+/// How far from the robot's centre the simulator takes a transducer, mm.
+pub const MAX_MOUNT_MM: i32 = 2_000;
+
 /// The filter starts at the true pose with these standard deviations (m, m, rad).
 pub const START_SIGMA: [f32; 3] = [0.05, 0.05, 0.0349];
 /// The pass bounds, written into a scenario: 5 cm and 1° RMSE.
@@ -72,10 +75,16 @@ pub fn simulate_cmd(a: &SimulateArgs) -> Result<String, LabError> {
     if !(0.0..=1.0).contains(&a.inconsistent) {
         return Err(LabError(format!("--inconsistent {}: must be within 0..=1", a.inconsistent)));
     }
-    for p in a.plot.iter().chain(a.scenario.iter()) {
+    for p in a.plot.iter().chain(a.plot.as_deref().map(error_plot_path).iter()).chain(a.scenario.iter()) {
         check_writable(p)?;
     }
     let mounts = ring_mounts(&a.ring)?;
+    if let Some(i) = mounts.iter().position(|m| m.x_mm.abs() > MAX_MOUNT_MM || m.y_mm.abs() > MAX_MOUNT_MM) {
+        return Err(LabError(format!(
+            "--ring {}: transducer {i} is more than 2 m from the robot's centre (the simulator's robot is not that big)",
+            a.ring
+        )));
+    }
     let (map, blob) = load_map_and_blob(&a.map, a.buffer_mm)?;
     let map_crc = echoloc::map::crc32(&blob);
     let cfg = WorldConfig::new(a.seed, a.distance_m, a.inconsistent, mounts.clone());
@@ -92,18 +101,21 @@ pub fn simulate_cmd(a: &SimulateArgs) -> Result<String, LabError> {
     if let Some(o) = report.as_object_mut() {
         o.insert("agreement".into(), agreement.json());
     }
-    // Everything is computed before anything is written.
+    // Everything is computed before anything is written, and a failed
+    // write takes back the files written before it.
+    let mut outputs: Vec<(PathBuf, Vec<u8>)> = Vec::new();
     if let Some(p) = &a.scenario {
         let mut bytes = Vec::new();
         scenario::write(&header, &mounts, &records, |b| bytes.extend_from_slice(b))
-            .map_err(|e| LabError(format!("--scenario {}: {e:?}", p.display())))?;
-        write_atomically(p, &bytes)?;
+            .map_err(|e| LabError(format!("--scenario {}: {e}", p.display())))?;
+        outputs.push((p.clone(), bytes));
     }
     if let Some(p) = &a.plot {
         let (paths, errors) = figures::draw(&map, &run, &trace);
-        write_atomically(p, &paths)?;
-        write_atomically(&error_plot_path(p), &errors)?;
+        outputs.push((p.clone(), paths));
+        outputs.push((error_plot_path(p), errors));
     }
+    write_all(&outputs)?;
     Ok(if a.json { report.to_string() } else { serde_json::to_string_pretty(&report).unwrap_or_default() })
 }
 
@@ -111,6 +123,23 @@ fn check_writable(p: &Path) -> Result<(), LabError> {
     let dir = p.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
     if !dir.is_dir() {
         return Err(LabError(format!("{}: folder {} does not exist", p.display(), dir.display())));
+    }
+    if p.is_dir() {
+        return Err(LabError(format!("{}: is a folder, not a file name", p.display())));
+    }
+    Ok(())
+}
+
+/// Writes every output, each atomically; if one fails, the ones already
+/// written are removed again, so a run leaves all of its files or none.
+fn write_all(outputs: &[(PathBuf, Vec<u8>)]) -> Result<(), LabError> {
+    for (k, (p, bytes)) in outputs.iter().enumerate() {
+        if let Err(e) = write_atomically(p, bytes) {
+            for (q, _) in &outputs[..k] {
+                let _ = std::fs::remove_file(q);
+            }
+            return Err(e);
+        }
     }
     Ok(())
 }
@@ -259,6 +288,11 @@ pub fn report(t: &Trace, run: Option<&SimRun>) -> Value {
         "removed_obstacles": run.removed_obstacles.len(),
         "unmapped_objects": run.unmapped.len(),
         "people": run.people.len(),
+        "odometry_errors": {
+            "left_scale": run.odometry_errors.left_scale,
+            "right_scale": run.odometry_errors.right_scale,
+            "wheelbase_scale": run.odometry_errors.wheelbase_scale,
+        },
         "detection": {
             "unknown_obstacle": {"precision": ratio(uo_tp, uo_tp + uo_fp), "recall": ratio(uo_tp, uo_tp + uo_fn),
                                   "true_positives": uo_tp, "false_positives": uo_fp, "false_negatives": uo_fn},

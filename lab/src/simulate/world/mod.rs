@@ -38,7 +38,7 @@ mod timing;
 mod truth;
 
 pub use config::{WorldConfig, WorldError};
-pub use run::{EchoSource, SimReading, SimRun};
+pub use run::{EchoKind, EchoSource, SimReading, SimRun};
 // The rest of the API: the types of `WorldConfig`'s and `SimRun`'s fields,
 // and the agreement tolerance (the simulate command need not name them).
 #[allow(unused_imports)]

@@ -10,6 +10,8 @@ pub enum EchoSource {
     Mapped {
         /// The map obstacle's index.
         obstacle: u16,
+        /// What part of it echoed.
+        kind: EchoKind,
     },
     /// Something not in the map: furniture moved in, or a person.
     Unmapped,
@@ -19,6 +21,17 @@ pub enum EchoSource {
     Noise,
     /// No echo within the listening window.
     None,
+}
+
+/// What part of a mapped obstacle echoed.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum EchoKind {
+    /// A face, by (near-)specular reflection.
+    Face,
+    /// An inside corner, by retro-reflection.
+    InsideCorner,
+    /// An outside edge, by diffraction.
+    OutsideEdge,
 }
 
 /// One firing of one transducer.

@@ -22,7 +22,7 @@
 //! for the first detection in both worlds alike.
 
 use super::geom::{wrap, P};
-use super::run::EchoSource;
+use super::run::{EchoKind, EchoSource};
 use super::scene::{Hit, Owner, StaticScene, Target};
 use super::timing::FiringPlan;
 use crate::credence::rng::{mix64, Rng};
@@ -226,7 +226,7 @@ impl<'b> Listener<'b> {
             (Target::Shape(sh), Some(sc)) => {
                 let owner = sc.owner(sh);
                 self.corners(sc, sh, (self.o.0 + d.0 * h.r, self.o.1 + d.1 * h.r), h.r);
-                (owner.key(), 0.0, source_of(owner))
+                (owner.key(), 0.0, source_of(owner, EchoKind::Face))
             }
             (Target::Shape(_), None) => return,
         };
@@ -250,17 +250,17 @@ impl<'b> Listener<'b> {
             }
             let back = libm::atan2(self.o.1 - v.1, self.o.0 - v.0);
             let Some(wedge) = sc.wedge_deg(sh, vi, back) else { continue };
-            let term = if (CORNER_WEDGE_DEG.0..=CORNER_WEDGE_DEG.1).contains(&wedge) {
-                -CORNER_LOSS_DB
+            let (term, kind) = if (CORNER_WEDGE_DEG.0..=CORNER_WEDGE_DEG.1).contains(&wedge) {
+                (-CORNER_LOSS_DB, EchoKind::InsideCorner)
             } else if wedge >= EDGE_WEDGE_MIN_DEG {
-                -EDGE_LOSS_DB - 20.0 * libm::log10(rv.max(0.1))
+                (-EDGE_LOSS_DB - 20.0 * libm::log10(rv.max(0.1)), EchoKind::OutsideEdge)
             } else {
                 continue;
             };
             let key = mix64((libm::round(v.0 * 1000.0) as i64 as u64) ^ mix64(libm::round(v.1 * 1000.0) as i64 as u64));
             let level = self.beam.base_db(rv, self.beam.dir_at(th)) + term + self.draws.fluctuation(key)
                 - self.draws.threshold_db;
-            self.offer(rv, level, source_of(sc.owner(sh)));
+            self.offer(rv, level, source_of(sc.owner(sh), kind));
         }
     }
 
@@ -313,9 +313,9 @@ impl<'b> Listener<'b> {
     }
 }
 
-fn source_of(owner: Owner) -> EchoSource {
+fn source_of(owner: Owner, kind: EchoKind) -> EchoSource {
     match owner {
-        Owner::Mapped { obstacle, .. } => EchoSource::Mapped { obstacle },
+        Owner::Mapped { obstacle, .. } => EchoSource::Mapped { obstacle, kind },
         Owner::Furniture(_) => EchoSource::Unmapped,
     }
 }
