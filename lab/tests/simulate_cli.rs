@@ -9,16 +9,11 @@ mod common;
 use std::path::{Path, PathBuf};
 use std::process::Output;
 
-use common::{lab, root};
+use common::{lab, root, shared_map, simulate};
 use serde_json::Value;
 
 fn office() -> PathBuf {
     root().join("maps/office.geojson")
-}
-
-/// A map from the project's shared data, checked out beside the repository.
-fn shared_map(name: &str) -> PathBuf {
-    root().join("../shared/data/maps").join(name)
 }
 
 /// A fresh, empty scratch folder for one test.
@@ -41,22 +36,8 @@ fn stderr(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
 }
 
-/// Runs `simulate --json` with `args` and returns the parsed report.
-fn simulate(args: &[&str]) -> Value {
-    let mut all = vec!["simulate", "--json"];
-    all.extend_from_slice(args);
-    let o = run(&all);
-    assert!(o.status.success(), "simulate {args:?} failed: {}", stderr(&o));
-    let text = String::from_utf8(o.stdout).unwrap();
-    assert_eq!(text.trim_end().lines().count(), 1, "--json prints one line: {text}");
-    let v: Value = serde_json::from_str(&text).unwrap();
-    assert!(v.is_object(), "{v}");
-    v
-}
-
 fn f(v: &Value, path: &str) -> f64 {
-    let x = path.split('.').fold(v, |v, k| &v[k]);
-    x.as_f64().unwrap_or_else(|| panic!("{path} is not a number: {x}"))
+    common::num(v, path)
 }
 
 fn u(v: &Value, path: &str) -> u64 {

@@ -6,6 +6,31 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
+/// A map from the project's shared data, checked out beside the repository.
+pub fn shared_map(name: &str) -> PathBuf {
+    root().join("../shared/data/maps").join(name)
+}
+
+/// Runs `simulate --json` with `args`, checks it printed one JSON object,
+/// and returns it.
+pub fn simulate(args: &[&str]) -> serde_json::Value {
+    let mut all = vec!["simulate", "--json"];
+    all.extend_from_slice(args);
+    let o = lab().args(&all).output().unwrap();
+    assert!(o.status.success(), "simulate {args:?} failed: {}", String::from_utf8_lossy(&o.stderr));
+    let text = String::from_utf8(o.stdout).unwrap();
+    assert_eq!(text.trim_end().lines().count(), 1, "--json prints one line: {text}");
+    let v: serde_json::Value = serde_json::from_str(&text).unwrap();
+    assert!(v.is_object(), "{v}");
+    v
+}
+
+/// The number at a dotted `path` of a JSON report.
+pub fn num(v: &serde_json::Value, path: &str) -> f64 {
+    let x = path.split('.').fold(v, |v, k| &v[k]);
+    x.as_f64().unwrap_or_else(|| panic!("{path} is not a number: {x}"))
+}
+
 /// The `echoloc-lab` binary under test.
 pub fn lab() -> Command {
     Command::new(env!("CARGO_BIN_EXE_echoloc-lab"))

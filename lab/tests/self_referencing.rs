@@ -1,0 +1,76 @@
+//! Self-referencing in the simulator, end to end (issue #10's figures, in
+//! CI): the EKF holds the pose on the real depot map over a 200 m route
+//! while dead reckoning drifts past a metre; the predictor's agreement with
+//! the independent simulated sonar is measured; the verdicts find the
+//! clutter. The bounds are the issue's targets where they are met, and
+//! floors under today's measurement where they are not (those are stated
+//! as such; docs/self-referencing.md has the figures and the commands).
+
+mod common;
+
+use common::{num, shared_map, simulate};
+
+/// depot, seed 3, 200 m, half the readings inconsistent with the map: the
+/// issue's targets (EKF position RMSE ≤ 5 cm, heading RMSE ≤ 1°) while dead
+/// reckoning drifts past 1 m.
+#[test]
+fn ekf_holds_the_pose_on_depot_while_dead_reckoning_drifts() {
+    let depot = shared_map("depot.yaml");
+    let v = simulate(&["--map", depot.to_str().unwrap(), "--seed", "3"]);
+    assert!(num(&v, "distance_m") >= 199.0, "{v}");
+    let (p, h) = (num(&v, "ekf.errors.position_rmse_m"), num(&v, "ekf.errors.heading_rmse_deg"));
+    assert!(p <= 0.05 && h <= 1.0, "EKF position RMSE {p} m, heading RMSE {h}°");
+    assert!(num(&v, "ekf.errors.max_position_error_m") < 0.5, "{v}");
+    assert!(num(&v, "dead_reckoning.max_position_error_m") > 1.0, "{v}");
+    // The threshold method is the paper's baseline: measured, not bounded,
+    // but it must at least have acted.
+    assert!(num(&v, "threshold.corrections") > 0.0);
+    assert!((num(&v, "inconsistent_fraction") - 0.5).abs() <= 0.05, "{v}");
+}
+
+/// tb3_sandbox, three seeds, 60 m: position within the target on each.
+#[test]
+fn ekf_holds_the_pose_on_tb3_sandbox() {
+    let map = shared_map("tb3_sandbox.yaml");
+    for seed in ["1", "2", "3"] {
+        let v = simulate(&["--map", map.to_str().unwrap(), "--seed", seed, "--distance-m", "60"]);
+        let p = num(&v, "ekf.errors.position_rmse_m");
+        assert!(p <= 0.05, "seed {seed}: EKF position RMSE {p} m");
+        assert!(num(&v, "ekf.errors.max_position_error_m") < 0.2, "seed {seed}: {v}");
+        assert_eq!(num(&v, "lost.raised"), 0.0, "seed {seed}: lost in a tracking run");
+    }
+}
+
+/// Where the predictor is confident (κ ≥ 0.9) and the scene is clean, how
+/// often the simulated sonar reads within the prediction's tolerance. The
+/// issue asks ≥ 95 %; measured on these runs: 79 % on depot, 86 % on
+/// tb3_sandbox, nearly all misses being a *nearer* echo the predictor's
+/// signature tests rule out (outside-edge diffraction, faces at 15–30°
+/// incidence). The floors below guard today's figure; they are not the
+/// target.
+#[test]
+fn predictor_and_simulated_sonar_agree_where_the_predictor_is_confident() {
+    for (map, floor) in [("depot.yaml", 0.75), ("tb3_sandbox.yaml", 0.8)] {
+        let m = shared_map(map);
+        let v = simulate(&["--map", m.to_str().unwrap(), "--seed", "1", "--inconsistent", "0", "--distance-m", "60"]);
+        let a = &v["agreement"];
+        let (n, within) = (num(a, "confident"), num(a, "within_tolerance"));
+        assert!(n > 500.0, "{map}: too few confident predictions: {a}");
+        assert!(within / n >= floor, "{map}: agreement {} below {floor}: {a}", within / n);
+        // The misses are mostly nearer echoes, not farther ones or silence.
+        let nearer = num(a, "nearer_face") + num(a, "nearer_inside_corner") + num(a, "nearer_outside_edge");
+        assert!(nearer > 4.0 * (num(a, "farther") + num(a, "silent")), "{map}: {a}");
+    }
+}
+
+/// With clutter, the verdicts flag unmapped objects: most unknown-obstacle
+/// verdicts are real (precision) and most echoes from unmapped objects are
+/// flagged (recall).
+#[test]
+fn verdicts_find_unmapped_objects() {
+    let m = shared_map("tb3_sandbox.yaml");
+    let v = simulate(&["--map", m.to_str().unwrap(), "--seed", "4", "--distance-m", "40", "--inconsistent", "0.4"]);
+    let d = &v["detection"]["unknown_obstacle"];
+    assert!(num(d, "precision") > 0.5 && num(d, "recall") > 0.3, "{d}");
+    assert!(num(&v, "verdicts.confirmed") > 0.0 && num(&v, "verdicts.unknown_obstacle") > 0.0, "{v}");
+}
