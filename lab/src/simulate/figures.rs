@@ -57,7 +57,7 @@ fn paths(map: &StandardMap, run: &SimRun, t: &Trace) -> Vec<u8> {
     }
     let mut y = 8;
     for (label, colour, _) in SERIES.iter().chain([("UNMAPPED OBJECTS", CLUTTER, None)].iter()) {
-        cv.text(10, y, &format!("— {label}"), 2, *colour);
+        cv.text(10, y, &format!("-- {label}"), 2, *colour);
         y += 20;
     }
     cv.png()
