@@ -15,7 +15,7 @@ for s in $(seq 1 "$n"); do
   ./target/release/echoloc-lab simulate --map "../shared/data/maps/$map.yaml" --seed "$s" --inconsistent "$inc" --json |
     python3 -c "
 import json, sys
-d = json.load(sys.stdin); e = d['ekf']['errors']
+d = json.load(sys.stdin); e = d['ekf']
 print($s, e['position_rmse_m'], e['heading_rmse_deg'], e['max_position_error_m'], d['dead_reckoning']['max_position_error_m'],
       d['lost']['raised'], d['lost']['cleared'], d['lost']['cycles_lost'], d['cycles'], d['inconsistent_fraction'], d['verdicts']['confirmed_fraction'])"
 done | tee /dev/stderr | awk '{ n++; if ($4 > 0.5) d++; if ($2 <= 0.05) p++; if ($3 <= 1.0) h++; sp += $2; sh += $3; lr += $6; lc += $7; cl += $8; cy += $9; cf += $11 }

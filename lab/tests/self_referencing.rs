@@ -18,9 +18,9 @@ fn ekf_holds_the_pose_on_depot_while_dead_reckoning_drifts() {
     let depot = shared_map("depot.yaml");
     let v = simulate(&["--map", depot.to_str().unwrap(), "--seed", "3"]);
     assert!(num(&v, "distance_m") >= 199.0, "{v}");
-    let (p, h) = (num(&v, "ekf.errors.position_rmse_m"), num(&v, "ekf.errors.heading_rmse_deg"));
+    let (p, h) = (num(&v, "ekf.position_rmse_m"), num(&v, "ekf.heading_rmse_deg"));
     assert!(p <= 0.05 && h <= 1.0, "EKF position RMSE {p} m, heading RMSE {h}°");
-    assert!(num(&v, "ekf.errors.max_position_error_m") < 0.5, "{v}");
+    assert!(num(&v, "ekf.max_position_error_m") < 0.5, "{v}");
     assert!(num(&v, "dead_reckoning.max_position_error_m") > 1.0, "{v}");
     // The threshold method is the paper's baseline: measured, not bounded,
     // but it must at least have acted.
@@ -34,9 +34,9 @@ fn ekf_holds_the_pose_on_tb3_sandbox() {
     let map = shared_map("tb3_sandbox.yaml");
     for seed in ["1", "2", "3"] {
         let v = simulate(&["--map", map.to_str().unwrap(), "--seed", seed, "--distance-m", "60"]);
-        let p = num(&v, "ekf.errors.position_rmse_m");
+        let p = num(&v, "ekf.position_rmse_m");
         assert!(p <= 0.05, "seed {seed}: EKF position RMSE {p} m");
-        assert!(num(&v, "ekf.errors.max_position_error_m") < 0.2, "seed {seed}: {v}");
+        assert!(num(&v, "ekf.max_position_error_m") < 0.2, "seed {seed}: {v}");
         assert_eq!(num(&v, "lost.raised"), 0.0, "seed {seed}: lost in a tracking run");
     }
 }

@@ -237,18 +237,17 @@ pub fn report(t: &Trace, run: Option<&SimRun>) -> Value {
         "distance_m": round4(t.distance_m),
         "duration_s": round4(t.duration_s),
         "dead_reckoning": method(Methods::DeadReckoning),
-        "threshold": {
-            "corrections": t.threshold_corrections,
-            "errors": method(Methods::Threshold),
-        },
-        "ekf": {
-            "accepted": t.accepted,
-            "gated": t.gated,
-            "lost_raised": t.lost_count,
-            "lost_cleared": t.lost_cleared,
-            "cycles_lost": t.cycles_lost,
-            "errors": method(Methods::Ekf),
-        },
+        "threshold": with(method(Methods::Threshold), json!({"corrections": t.threshold_corrections})),
+        "ekf": with(
+            method(Methods::Ekf),
+            json!({
+                "accepted": t.accepted,
+                "gated": t.gated,
+                "lost_raised": t.lost_count,
+                "lost_cleared": t.lost_cleared,
+                "cycles_lost": t.cycles_lost,
+            })
+        ),
         "verdicts": {
             "confirmed": v.confirmed,
             "unknown_obstacle": v.unknown_obstacle,
@@ -300,10 +299,15 @@ pub fn report(t: &Trace, run: Option<&SimRun>) -> Value {
                                   "true_positives": rm_tp, "false_positives": rm_fp, "false_negatives": rm_fn},
         },
     });
-    if let (Some(o), Value::Object(e)) = (out.as_object_mut(), extra) {
+    with(out, extra)
+}
+
+/// `a` with the keys of `b` added (both JSON objects).
+fn with(mut a: Value, b: Value) -> Value {
+    if let (Some(o), Value::Object(e)) = (a.as_object_mut(), b) {
         o.extend(e);
     }
-    out
+    a
 }
 
 /// A progress bar on stderr, shown only once a run has taken a second.
