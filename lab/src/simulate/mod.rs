@@ -232,7 +232,7 @@ pub fn report(t: &Trace, run: Option<&SimRun>) -> Value {
         })
     };
     let v = &t.verdicts;
-    let mut out = json!({
+    let out = json!({
         "readings": t.times.len(),
         "distance_m": round4(t.distance_m),
         "duration_s": round4(t.duration_s),
