@@ -147,12 +147,11 @@ pub fn load_map(path: &Path, buffer_mm: u32) -> Result<Box<StandardMap>, LabErro
 /// [`load_map`], with the blob the map was loaded from (read, or built here).
 pub fn load_map_and_blob(path: &Path, buffer_mm: u32) -> Result<(Box<StandardMap>, Vec<u8>), LabError> {
     let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
-    let blob = if ext == "map" {
-        std::fs::read(path).map_err(|e| LabError(format!("{}: {e}", path.display())))?
-    } else {
-        let shapes = map::read_shapes(path)?;
-        map::build_map(&shapes, buffer_mm, 1000).map_err(|e| LabError(format!("{}: {e}", path.display())))?.0
-    };
+    if ext == "map" {
+        return map::load_blob(path);
+    }
+    let shapes = map::read_shapes(path)?;
+    let blob = map::build_map(&shapes, buffer_mm, 1000).map_err(|e| LabError(format!("{}: {e}", path.display())))?.0;
     Ok((map::blob_to_map(&blob, path)?, blob))
 }
 

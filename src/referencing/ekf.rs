@@ -257,7 +257,7 @@ impl Ekf {
         }
         let s = hj[0] * ph[0] + hj[1] * ph[1] + hj[2] * ph[2] + s2;
         let nu = z - h;
-        if s.is_nan() || s <= 0.0 || !s.is_finite() {
+        if !s.is_finite() || s <= 0.0 {
             return Update::Unusable;
         }
         let nis = nu * nu / s;

@@ -13,7 +13,7 @@ pub struct Canvas {
     px: Vec<u8>,
 }
 
-type Rgb = [u8; 3];
+pub type Rgb = [u8; 3];
 const BLACK: Rgb = [0, 0, 0];
 const GREY: Rgb = [200, 200, 200];
 
@@ -263,12 +263,19 @@ pub fn profile_figure(title: &str, ranges_mm: &[u32], series: &[Series<'_>]) -> 
             }
         }
     }
-    let mut lx = 70;
-    for s in series {
-        c.rect(lx, h - 40, 24, 12, s.colour);
-        lx += 32 + c.text(lx + 32, h - 43, s.label, 2, BLACK) + 30;
-    }
+    let items: Vec<(&str, Rgb)> = series.iter().map(|s| (s.label, s.colour)).collect();
+    legend(&mut c, 70, h - 40, &items);
     c
+}
+
+/// A legend row: a swatch and a label per item, left to right from `x`,
+/// swatches' tops at `y`.
+pub fn legend(c: &mut Canvas, x: i64, y: i64, items: &[(&str, Rgb)]) {
+    let mut lx = x;
+    for &(label, colour) in items {
+        c.rect(lx, y, 24, 12, colour);
+        lx += 32 + c.text(lx + 32, y - 3, label, 2, BLACK) + 30;
+    }
 }
 
 /// A 5×7 glyph, one byte per row, bit 4 the leftmost dot. Lower case is

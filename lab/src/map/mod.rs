@@ -202,7 +202,7 @@ pub fn run(cmd: MapCmd) -> Result<String, LabError> {
         }
         MapCmd::Info { map } => {
             let (m, bytes) = load_blob(&map)?;
-            Ok(MapSummary::of(&m, m.obstacles().len(), bytes).to_json())
+            Ok(MapSummary::of(&m, m.obstacles().len(), bytes.len()).to_json())
         }
         MapCmd::Export { map, out } => {
             let (m, _) = load_blob(&map)?;
@@ -225,10 +225,10 @@ pub fn run(cmd: MapCmd) -> Result<String, LabError> {
     }
 }
 
-/// Reads a blob file and loads it as the firmware does; also its size.
-pub fn load_blob(path: &Path) -> Result<(Box<StandardMap>, usize), LabError> {
+/// Reads a blob file and loads it as the firmware does; also its bytes.
+pub fn load_blob(path: &Path) -> Result<(Box<StandardMap>, Vec<u8>), LabError> {
     let bytes = std::fs::read(path).map_err(|e| ImportError::Io { path: path.to_path_buf(), source: e })?;
-    Ok((blob_to_map(&bytes, path)?, bytes.len()))
+    Ok((blob_to_map(&bytes, path)?, bytes))
 }
 
 /// Loads blob bytes (read from, or made for, `path`) as the firmware does.

@@ -6,11 +6,10 @@ use echoloc::map::StandardMap;
 
 use super::filters::{Methods, Trace};
 use super::world::SimRun;
-use crate::credence::plot::Canvas;
+use crate::credence::plot::{legend, Canvas, Rgb};
 use crate::map::render::preview_canvas;
 use crate::map::Unknown;
 
-type Rgb = [u8; 3];
 const TRUTH: Rgb = [0, 0, 0];
 const DEAD_RECKONING: Rgb = [220, 30, 30];
 const THRESHOLD: Rgb = [150, 60, 200];
@@ -108,11 +107,8 @@ fn errors(t: &Trace) -> Vec<u8> {
         c.line((px, py), (px, py + ph), BLACK, 1);
         c.line((px, py + ph), (px + pw, py + ph), BLACK, 1);
     }
-    let mut lx = px;
-    for (label, colour, _) in &SERIES[1..] {
-        c.rect(lx, h - 40, 24, 12, *colour);
-        lx += 32 + c.text(lx + 32, h - 43, label, 2, BLACK) + 30;
-    }
+    let items: Vec<(&str, Rgb)> = SERIES[1..].iter().map(|&(label, colour, _)| (label, colour)).collect();
+    legend(&mut c, px, h - 40, &items);
     c.png(std::path::Path::new("error plot")).unwrap_or_default()
 }
 

@@ -15,6 +15,8 @@ use echoloc::referencing::{
 use echoloc::scenario::{Header, Record};
 use echoloc::window::WindowParams;
 
+use super::world::wrap;
+
 /// The three estimates.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Methods {
@@ -65,8 +67,6 @@ pub struct Trace {
     pub threshold: Vec<[f64; 3]>,
     /// The EKF.
     pub ekf: Vec<[f64; 3]>,
-    /// The EKF's position standard deviation, m.
-    pub ekf_sigma_m: Vec<f64>,
     /// The EKF's verdicts.
     pub verdicts: VerdictCounts,
     /// Per reading, for detection scores.
@@ -87,10 +87,6 @@ pub struct Trace {
     pub distance_m: f64,
     /// Duration, s.
     pub duration_s: f64,
-}
-
-fn wrap(a: f64) -> f64 {
-    (a + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI
 }
 
 impl Trace {
@@ -160,18 +156,12 @@ pub fn run(
     let mut dr = f64x3(header.start);
     let mut t = Trace::default();
     let mut cycle = records.first().map_or(0, |r| r.cycle);
-    let mut was_lost = false;
     let mut prev_truth: Option<[f64; 3]> = None;
     // Firing times wrap at 2³² µs (71 min): unwrap them.
     let (mut last_us, mut epoch) = (records.first().map_or(0, |r| r.time_us), 0u64);
     for (i, r) in records.iter().enumerate() {
         if r.cycle != cycle {
             ekf.end_cycle();
-            let lost = ekf.ekf.is_lost();
-            if was_lost && !lost {
-                t.lost_cleared += 1;
-            }
-            was_lost = lost;
             cycle = r.cycle;
         }
         let mount = mounts
@@ -217,18 +207,15 @@ pub fn run(
         t.threshold.push(f64x3(thr.state()));
         let x = ekf.ekf.state();
         t.ekf.push(f64x3(x));
-        let p = ekf.ekf.covariance();
-        t.ekf_sigma_m.push(f64::from(p[0][0] + p[1][1]).sqrt());
         if i % 256 == 0 {
             progress(i as f64 / records.len().max(1) as f64);
         }
     }
     ekf.end_cycle();
-    if was_lost && !ekf.ekf.is_lost() {
-        t.lost_cleared += 1;
-    }
     t.verdicts = ekf.totals();
     t.lost_count = ekf.ekf.lost_count();
+    // Every time it became lost but the last was cleared, and that one too unless it is still lost.
+    t.lost_cleared = t.lost_count - u32::from(ekf.ekf.is_lost());
     t.cycles_lost = ekf.ekf.cycles_lost();
     t.threshold_corrections = thr.corrections();
     t.duration_s = t.times.last().copied().unwrap_or(0.0) - t.times.first().copied().unwrap_or(0.0);

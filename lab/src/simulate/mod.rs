@@ -13,7 +13,6 @@ use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use clap::Args;
-use echoloc::driver::SpeedOfSound;
 use echoloc::referencing::Motion;
 use echoloc::scenario::{self, Header, Record};
 use serde_json::{json, Value};
@@ -60,9 +59,6 @@ pub struct SimulateArgs {
 /// agreement with the simulated sonar is measured.
 pub const AGREEMENT_KAPPA: f32 = 0.9;
 
-/// How far from the robot's centre the simulator takes a transducer, mm.
-pub const MAX_MOUNT_MM: i32 = 2_000;
-
 /// The filter starts at the true pose with these standard deviations (m, m, rad).
 pub const START_SIGMA: [f32; 3] = [0.05, 0.05, 0.0349];
 /// The pass bounds, written into a scenario: 5 cm and 1° RMSE.
@@ -79,7 +75,7 @@ pub fn simulate_cmd(a: &SimulateArgs) -> Result<String, LabError> {
         check_writable(p)?;
     }
     let mounts = ring_mounts(&a.ring)?;
-    if let Some(i) = mounts.iter().position(|m| m.x_mm.abs() > MAX_MOUNT_MM || m.y_mm.abs() > MAX_MOUNT_MM) {
+    if let Some(i) = mounts.iter().position(|m| !world::within_reach(m)) {
         return Err(LabError(format!(
             "--ring {}: transducer {i} is more than 2 m from the robot's centre (the simulator's robot is not that big)",
             a.ring
@@ -182,29 +178,22 @@ pub fn to_records(run: &SimRun) -> Result<Vec<Record>, LabError> {
 fn motion_f64(a: (f64, f64, f64), b: (f64, f64, f64)) -> Motion {
     let (s, c) = a.2.sin_cos();
     let (gx, gy) = (b.0 - a.0, b.1 - a.1);
-    let turn = (b.2 - a.2 + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI;
-    Motion { dx: (c * gx + s * gy) as f32, dy: (-s * gx + c * gy) as f32, dphi: turn as f32 }
+    Motion { dx: (c * gx + s * gy) as f32, dy: (-s * gx + c * gy) as f32, dphi: world::wrap(b.2 - a.2) as f32 }
 }
 
 fn header(run: &SimRun, map_crc: u32, records: &[Record]) -> Header {
     let start = records.first().map_or([0.0; 3], |r| r.truth);
     Header {
         map_crc,
-        speed_um_per_s: DRIVER_SOUND.um_per_s(),
-        period_us: (run.period_s * 1e6).round() as u32,
-        slot_us: run.slot_s.map_or(0, |s| (s * 1e6).round() as u32),
+        speed_um_per_s: run.sound.um_per_s(),
+        period_us: run.period_us,
+        slot_us: run.slot_us,
         start,
         start_sigma: START_SIGMA,
         bound_position_m: BOUNDS.0,
         bound_heading_deg: BOUNDS.1,
     }
 }
-
-/// The speed of sound the driver converts echo times with: 20 °C.
-pub const DRIVER_SOUND: SpeedOfSound = match SpeedOfSound::at_centi_celsius(2000) {
-    Ok(s) => s,
-    Err(_) => panic!("20 °C is within the driver's range"),
-};
 
 fn ratio(n: u64, d: u64) -> Value {
     if d == 0 {

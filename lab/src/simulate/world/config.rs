@@ -22,6 +22,14 @@ pub const MAX_DISTANCE_M: f64 = 20_000.0;
 /// Most transducers on a ring (the firing plan is built for 1 to this many).
 pub const MAX_TRANSDUCERS: usize = 64;
 
+/// How far from the robot's centre a transducer may sit, each way, mm.
+pub const MAX_MOUNT_MM: i32 = 2_000;
+
+/// Whether a transducer sits within [`MAX_MOUNT_MM`] of the robot's centre.
+pub fn within_reach(m: &Mount) -> bool {
+    m.x_mm.unsigned_abs() <= MAX_MOUNT_MM as u32 && m.y_mm.unsigned_abs() <= MAX_MOUNT_MM as u32
+}
+
 /// The simulated world's settings.
 #[derive(Clone, Debug, PartialEq)]
 pub struct WorldConfig {
@@ -82,7 +90,7 @@ impl WorldConfig {
         if self.mounts.is_empty() || self.mounts.len() > MAX_TRANSDUCERS {
             return bad(format!("{} transducers: expected 1 to {MAX_TRANSDUCERS}", self.mounts.len()));
         }
-        if self.mounts.iter().any(|m| m.x_mm.abs() > 2_000 || m.y_mm.abs() > 2_000) {
+        if !self.mounts.iter().all(within_reach) {
             return bad("a transducer more than 2 m from the robot's centre".into());
         }
         if !(self.speed_m_s.is_finite() && self.speed_m_s > 0.01 && self.speed_m_s <= 3.0) {

@@ -37,7 +37,8 @@ mod tests;
 mod timing;
 mod truth;
 
-pub use config::{WorldConfig, WorldError};
+pub use config::{within_reach, WorldConfig, WorldError};
+pub use geom::wrap;
 pub use run::{EchoKind, EchoSource, SimReading, SimRun};
 // The rest of the API: the types of `WorldConfig`'s and `SimRun`'s fields,
 // and the agreement tolerance (the simulate command need not name them).
@@ -94,8 +95,9 @@ pub fn simulate_world(
         readings,
         clutter: world.clutter,
         cycles: setup.firings.len() / setup.plan.order.len().max(1),
-        period_s: f64::from(setup.plan.period_us) * 1e-6,
-        slot_s: Some(f64::from(setup.plan.slot_us) * 1e-6),
+        period_us: setup.plan.period_us,
+        slot_us: setup.plan.slot_us,
+        sound: setup.plan.module.sound(),
         duration_s: setup.traj.duration(),
         odometry_errors: setup.odometry_errors,
     })

@@ -1,5 +1,7 @@
 //! What a simulated run hands back.
 
+use echoloc::driver::SpeedOfSound;
+
 use super::geom::P;
 use super::motion::OdometryErrors;
 
@@ -121,10 +123,12 @@ pub struct SimRun {
     pub clutter: Clutter,
     /// Firing cycles run.
     pub cycles: usize,
-    /// One cycle, s.
-    pub period_s: f64,
-    /// One slot of the cycle (listening window, ring-down gap, late limit), s.
-    pub slot_s: Option<f64>,
+    /// One cycle, µs (the driver's ring timing).
+    pub period_us: u32,
+    /// One slot of the cycle (listening window, ring-down gap, late limit), µs.
+    pub slot_us: u32,
+    /// The speed of sound the driver converts echo times with.
+    pub sound: SpeedOfSound,
     /// Duration of the drive, s.
     pub duration_s: f64,
     /// The systematic odometry errors drawn for this run.
