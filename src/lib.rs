@@ -6,7 +6,7 @@
 //! real echo, and corrects the pose (Allen et al., *Autonomous Mobile Robot
 //! Self-Referencing with Sensor Windows and Neural Networks*).
 //!
-//! This release holds the foundation every later part stands on:
+//! Its modules:
 //!
 //! | module | what it does |
 //! |---|---|
@@ -18,9 +18,12 @@
 //! | [`window`] | sensor windows: parameters, pseudo-paths, placement, exact sector tests, beacon collection |
 //! | [`predict`] | range prediction: the four signature tests, Cases I–III, subsurface search, occlusion; rings of transducers |
 //! | [`map`] | the fixed-capacity obstacle map, its uniform grid index and its binary blob |
+//! | [`referencing`] | self-referencing: verdicts, the EKF over (x, y, φ), the paper's threshold method |
+//! | [`scenario`] | scenario files: a recorded run, versioned and CRC-checked, read in place |
 //!
 //! Every geometric *decision* is exact integer arithmetic; there is no
-//! allocator and no float on these paths.
+//! allocator and no float on these paths (the pose filter in [`referencing`]
+//! is `f32`, as DESIGN §3 allows).
 //!
 //! ```
 //! use echoloc::geometry::{Point, Segment};
