@@ -84,12 +84,10 @@ fn bad_inputs_fail_clearly_and_write_nothing() {
     assert!(String::from_utf8_lossy(&o.stderr).contains("/nonexistent/x.geojson"));
 }
 
-#[test]
-fn a_map_beyond_the_firmware_capacity_is_refused() {
-    // 1100 separate squares: more obstacles than StandardMap holds.
+fn squares(n: usize) -> String {
     let mut feats = Vec::new();
-    for i in 0..1100 {
-        let (x, y) = ((i % 40) as f64 * 2.0, (i / 40) as f64 * 2.0);
+    for i in 0..n {
+        let (x, y) = ((i % 150) as f64 * 2.0, (i / 150) as f64 * 2.0);
         feats.push(format!(
             r#"{{"type":"Feature","geometry":{{"type":"Polygon","coordinates":[[[{x},{y}],[{},{y}],[{},{}],[{x},{}],[{x},{y}]]]}}}}"#,
             x + 1.0,
@@ -98,8 +96,28 @@ fn a_map_beyond_the_firmware_capacity_is_refused() {
             y + 1.0
         ));
     }
-    let text = format!(r#"{{"type":"FeatureCollection","features":[{}]}}"#, feats.join(","));
-    import_fails("big.geojson", &text, "exceeds the firmware's capacity");
+    format!(r#"{{"type":"FeatureCollection","features":[{}]}}"#, feats.join(","))
+}
+
+#[test]
+fn a_map_beyond_the_old_ram_map_imports_and_validates() {
+    // 1100 separate squares: more than the 1024 obstacles the RAM-built
+    // StandardMap holds; the compiled map has no such limit.
+    let input = tmp("big.geojson");
+    std::fs::write(&input, squares(1100)).unwrap();
+    let out = tmp("big.map");
+    let o = lab().args(["map", "import"]).arg(&input).arg("-o").arg(&out).output().unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let o = lab().args(["map", "info"]).arg(&out).output().unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let info: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(info["convex_pieces"], 1100);
+}
+
+#[test]
+fn a_map_beyond_the_compiler_capacity_is_refused() {
+    // More pieces than the host's compiler holds (16 384).
+    import_fails("huge.geojson", &squares(16_500), "exceeds the compiler's capacity");
 }
 
 #[test]

@@ -6,8 +6,12 @@
 pub const COORD_MAX: i32 = (1 << 30) - 1;
 
 /// A point in the map frame, integer millimetres.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, PartialOrd, Ord)]
+///
+/// `repr(C)` and plain old data, so a compiled map's vertex section is read
+/// in place as `&[Point]` (two little-endian `i32`, 8 bytes, 4-aligned).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, PartialOrd, Ord, bytemuck::Pod, bytemuck::Zeroable)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[repr(C)]
 pub struct Point {
     /// x (forward in the ROS map frame), mm.
     pub x: i32,

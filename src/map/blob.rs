@@ -16,6 +16,10 @@
 //!      vertices  × { x i32, y i32 }            (true outlines only)
 //! ```
 //!
+//! This is version 1, which [`Map::load`] still reads; `echoloc-lab map
+//! import` writes version 2, the compiled map (`compiled.rs`), which
+//! [`Map::load`] reads too and the firmware reads in place.
+//!
 //! Only true outlines travel: the loader re-validates every piece and grows
 //! the buffers and the grid itself, so a blob cannot carry a buffer or index
 //! that disagrees with its geometry. Decoding never allocates and never
@@ -114,6 +118,50 @@ pub enum BlobError {
     Capacity(Capacity),
     /// Building buffers or the grid failed (for example a buffer too large).
     Finish(MapError),
+    /// A compiled map that does not start on a 4-byte boundary (see
+    /// [`Aligned`](super::Aligned)).
+    Misaligned,
+    /// A compiled map's counts whose sections' sizes overflow.
+    SizeMismatch,
+    /// A compiled piece whose vertex range is out of bounds or out of order.
+    VertexRange {
+        /// Piece index.
+        piece: u16,
+    },
+    /// A compiled piece whose buffered outline is not its true outline grown
+    /// by the map's buffer.
+    BufferMismatch {
+        /// Piece index.
+        piece: u16,
+    },
+    /// A compiled piece whose box is not its buffered outline's box.
+    BoxMismatch {
+        /// Piece index.
+        piece: u16,
+    },
+    /// A compiled piece whose seams disagree with its neighbours.
+    SeamMismatch {
+        /// Piece index.
+        piece: u16,
+    },
+    /// A compiled grid whose origin, cell size or dimensions disagree with
+    /// the pieces' boxes.
+    GridFrame,
+    /// A compiled grid whose cell starts are out of order or past the refs.
+    GridStart {
+        /// Cell index.
+        cell: u32,
+    },
+    /// A compiled grid reference to a piece that does not exist, whose box
+    /// does not cover the cell, or out of descending order in its cell.
+    GridRef {
+        /// Cell index.
+        cell: u32,
+        /// The piece id found.
+        piece: u16,
+    },
+    /// A compiled grid with more or fewer references than the boxes cover.
+    GridCoverage,
 }
 
 /// Why a map could not be encoded.
@@ -230,6 +278,10 @@ impl<const PIECES: usize, const VERTS: usize, const CELLS: usize, const REFS: us
             return Err(BlobError::BadMagic);
         }
         let version = h.u16()?;
+        if version == super::COMPILED_VERSION {
+            let view = super::MapView::new(blob)?;
+            return self.load_view(&view);
+        }
         if version != BLOB_VERSION {
             return Err(BlobError::UnsupportedVersion(version));
         }

@@ -42,19 +42,16 @@ impl<const CELLS: usize, const REFS: usize> Grid<CELLS, REFS> {
         self.refs.len()
     }
 
-    /// Cell column (or row) of a coordinate, clamped into the grid.
-    fn cell_of(&self, v: i32, origin: i32, n: u16) -> u16 {
-        let d = (v as i64 - origin as i64).max(0) / self.cell_mm as i64;
-        d.min(n as i64 - 1) as u16
-    }
-
-    fn cell_range(&self, r: Rect) -> (u16, u16, u16, u16) {
-        (
-            self.cell_of(r.min.x, self.origin.x, self.cols),
-            self.cell_of(r.min.y, self.origin.y, self.rows),
-            self.cell_of(r.max.x, self.origin.x, self.cols),
-            self.cell_of(r.max.y, self.origin.y, self.rows),
-        )
+    /// The borrowed form every query runs on.
+    pub(super) fn index(&self) -> GridRef<'_> {
+        GridRef {
+            origin: self.origin,
+            cell_mm: self.cell_mm,
+            cols: self.cols,
+            rows: self.rows,
+            start: &self.start,
+            refs: &self.refs,
+        }
     }
 
     // An all-zero empty grid keeps `Map::new()` in .bss rather than .data (no
@@ -82,7 +79,7 @@ impl<const CELLS: usize, const REFS: usize> Grid<CELLS, REFS> {
         let _ = self.start.resize(ncells, 0);
         let mut total: u64 = 0;
         for b in boxes.clone() {
-            let (x0, y0, x1, y1) = self.cell_range(b);
+            let (x0, y0, x1, y1) = self.index().cell_range(b);
             for y in y0..=y1 {
                 for x in x0..=x1 {
                     self.start[y as usize * self.cols as usize + x as usize] += 1;
@@ -102,7 +99,7 @@ impl<const CELLS: usize, const REFS: usize> Grid<CELLS, REFS> {
         // Pass 2: fill backwards; each cell's end offset walks down to its start.
         let _ = self.refs.resize(total as usize, 0);
         for (id, b) in boxes.enumerate() {
-            let (x0, y0, x1, y1) = self.cell_range(b);
+            let (x0, y0, x1, y1) = self.index().cell_range(b);
             for y in y0..=y1 {
                 for x in x0..=x1 {
                     let c = y as usize * self.cols as usize + x as usize;
@@ -113,22 +110,61 @@ impl<const CELLS: usize, const REFS: usize> Grid<CELLS, REFS> {
         }
         Ok(())
     }
+}
+
+/// A grid index borrowed from wherever it lives: a [`Grid`] in RAM or a
+/// compiled map's sections in flash. `start[c]` is where cell `c`'s ids
+/// begin; they end at `start[c + 1]`, or at `refs.len()` for the last cell.
+/// The compiled form keeps a sentinel entry, which the same rule ignores.
+#[derive(Clone, Copy)]
+pub(super) struct GridRef<'a> {
+    pub(super) origin: Point,
+    pub(super) cell_mm: u32,
+    pub(super) cols: u16,
+    pub(super) rows: u16,
+    pub(super) start: &'a [u32],
+    pub(super) refs: &'a [u16],
+}
+
+impl GridRef<'_> {
+    /// Cell column (or row) of a coordinate, clamped into the grid.
+    pub(super) fn cell_of(&self, v: i32, origin: i32, n: u16) -> u16 {
+        let d = (v as i64 - origin as i64).max(0) / self.cell_mm.max(1) as i64;
+        d.min(n as i64 - 1).max(0) as u16
+    }
+
+    /// The cells `(x0, y0, x1, y1)` a box covers, clamped into the grid.
+    pub(super) fn cell_range(&self, r: Rect) -> (u16, u16, u16, u16) {
+        (
+            self.cell_of(r.min.x, self.origin.x, self.cols),
+            self.cell_of(r.min.y, self.origin.y, self.rows),
+            self.cell_of(r.max.x, self.origin.x, self.cols),
+            self.cell_of(r.max.y, self.origin.y, self.rows),
+        )
+    }
+
+    /// The ids indexed in cell `c` (empty when out of range).
+    pub(super) fn cell(&self, c: usize) -> &[u16] {
+        let lo = self.start.get(c).map_or(0, |&s| s as usize);
+        let hi = match self.start.get(c + 1) {
+            Some(&e) if c + 1 < self.cols as usize * self.rows as usize => e as usize,
+            _ => self.refs.len(),
+        };
+        self.refs.get(lo..hi).unwrap_or(&[])
+    }
 
     /// Calls `f(id)` once for every indexed piece whose box (as given by
     /// `bbox`) overlaps `area`.
     pub(super) fn query(&self, area: Rect, bbox: impl Fn(u16) -> Rect, mut f: impl FnMut(u16)) -> QueryStats {
         let mut stats = QueryStats::default();
-        if self.cols == 0 {
+        if self.cols == 0 || self.rows == 0 {
             return stats;
         }
         let (x0, y0, x1, y1) = self.cell_range(area);
         for y in y0..=y1 {
             for x in x0..=x1 {
                 stats.cells += 1;
-                let c = y as usize * self.cols as usize + x as usize;
-                let lo = self.start[c] as usize;
-                let hi = self.start.get(c + 1).map_or(self.refs.len(), |&e| e as usize);
-                for &id in &self.refs[lo..hi] {
+                for &id in self.cell(y as usize * self.cols as usize + x as usize) {
                     let b = bbox(id);
                     if !b.overlaps(&area) {
                         continue;

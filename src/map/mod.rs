@@ -14,11 +14,15 @@
 //! a finished map returns it to building.
 
 mod blob;
+mod compiled;
 mod crc32;
 mod grid;
+mod source;
 
 pub use blob::{BlobError, EncodeError, BLOB_HEADER_LEN, BLOB_MAGIC, BLOB_VERSION};
+pub use compiled::{Aligned, MapView, COMPILED_VERSION};
 pub use crc32::{crc32, Crc32};
+pub use source::MapSource;
 
 use heapless::Vec;
 
@@ -375,7 +379,10 @@ impl<const PIECES: usize, const VERTS: usize, const CELLS: usize, const REFS: us
         }
         let r = self.build(buffer_mm, cell_mm);
         match r {
-            Ok(()) => self.finished = true,
+            Ok(()) => {
+                self.finished = true;
+                self.mark_seams();
+            }
             Err(_) => {
                 self.unfinish();
                 self.buffer_mm = 0;
@@ -398,51 +405,13 @@ impl<const PIECES: usize, const VERTS: usize, const CELLS: usize, const REFS: us
             rec.bbox = Rect0::of(&grown);
         }
         let boxes = self.pieces.iter().map(|p| Rect::from(p.bbox));
-        self.grid.build(boxes, cell_mm)?;
-        self.mark_seams();
-        Ok(())
+        self.grid.build(boxes, cell_mm)
     }
 
-    /// Marks every edge that an edge of another piece of the same obstacle
-    /// covers, running the other way: a seam from convex splitting.
+    /// Marks every seam (see [`source::seams_of`]) once the grid is built.
     fn mark_seams(&mut self) {
         for i in 0..self.pieces.len() {
-            let rec = self.pieces[i];
-            let a = Convex::new_unchecked(&self.verts[rec.true_range()]);
-            if a.is_wall() {
-                continue;
-            }
-            let area = Rect::of_points(a.vertices()).unwrap_or(Rect::around(Point::new(0, 0)));
-            let mut mask = 0u32;
-            let pieces = &self.pieces;
-            let verts = &self.verts;
-            let _ = self.grid.query(
-                area,
-                |id| Rect::from(pieces[id as usize].bbox),
-                |id| {
-                    let other = pieces[id as usize];
-                    if id as usize == i || other.obstacle != rec.obstacle {
-                        return;
-                    }
-                    let b = Convex::new_unchecked(&verts[other.true_range()]);
-                    for ea in 0..a.edge_count() {
-                        let (u, v) = a.edge(ea);
-                        for eb in 0..b.edge_count() {
-                            let (p, q) = b.edge(eb);
-                            let collinear =
-                                crate::geometry::orient(p, q, u) == 0 && crate::geometry::orient(p, q, v) == 0;
-                            let opposite = crate::geometry::dot(v.sub(u), q.sub(p)) < 0;
-                            if collinear
-                                && opposite
-                                && crate::geometry::point_on_segment(u, p, q)
-                                && crate::geometry::point_on_segment(v, p, q)
-                            {
-                                mask |= 1 << ea;
-                            }
-                        }
-                    }
-                },
-            );
+            let mask = source::seams_of(&*self, i as u16).unwrap_or(0);
             self.pieces[i].internal = mask;
         }
     }
@@ -510,58 +479,58 @@ impl<const PIECES: usize, const VERTS: usize, const CELLS: usize, const REFS: us
         (0..self.pieces.len() as u16).filter_map(|i| self.piece(i))
     }
 
-    /// Calls `f` once for each piece whose buffered bounding box overlaps
-    /// `area`, through the grid (never a scan of the whole map).
-    pub fn for_each_candidate(&self, area: Rect, mut f: impl FnMut(Piece<'_>)) -> Result<QueryStats, MapError> {
+    /// See [`MapSource::for_each_candidate`].
+    pub fn for_each_candidate(&self, area: Rect, f: impl FnMut(Piece<'_>)) -> Result<QueryStats, MapError> {
+        MapSource::for_each_candidate(self, area, f)
+    }
+
+    /// See [`MapSource::for_each_hit`].
+    pub fn for_each_hit(&self, seg: Segment, layer: Layer, f: impl FnMut(Piece<'_>)) -> Result<QueryStats, MapError> {
+        MapSource::for_each_hit(self, seg, layer, f)
+    }
+
+    /// See [`MapSource::first_hit`].
+    pub fn first_hit(&self, seg: Segment) -> Result<Option<Hit>, MapError> {
+        MapSource::first_hit(self, seg)
+    }
+}
+
+impl<const PIECES: usize, const VERTS: usize, const CELLS: usize, const REFS: usize> MapSource
+    for Map<PIECES, VERTS, CELLS, REFS>
+{
+    fn buffer_mm(&self) -> u32 {
+        self.buffer_mm
+    }
+
+    fn obstacle_count(&self) -> usize {
+        self.obstacles.len()
+    }
+
+    fn obstacle(&self, id: u16) -> Option<Obstacle> {
+        self.obstacles.get(id as usize).copied()
+    }
+
+    fn piece_count(&self) -> usize {
+        self.pieces.len()
+    }
+
+    fn piece(&self, id: u16) -> Option<Piece<'_>> {
+        Map::piece(self, id)
+    }
+
+    fn for_each_candidate(&self, area: Rect, mut f: impl FnMut(Piece<'_>)) -> Result<QueryStats, MapError> {
         if !self.finished {
             return Err(MapError::NotFinished);
         }
         let pieces = &self.pieces;
-        Ok(self.grid.query(
+        Ok(self.grid.index().query(
             area,
-            |id| Rect::from(pieces[id as usize].bbox),
+            |id| pieces.get(id as usize).map_or(Rect::around(Point::new(0, 0)), |p| Rect::from(p.bbox)),
             |id| {
-                if let Some(p) = self.piece(id) {
+                if let Some(p) = Map::piece(self, id) {
                     f(p)
                 }
             },
         ))
-    }
-
-    /// Calls `f` for each piece whose chosen outline the closed segment meets
-    /// (exact t-vector test), through the grid.
-    pub fn for_each_hit(
-        &self,
-        seg: Segment,
-        layer: Layer,
-        mut f: impl FnMut(Piece<'_>),
-    ) -> Result<QueryStats, MapError> {
-        self.for_each_candidate(seg.bbox(), |p| {
-            let shape = match layer {
-                Layer::True => p.shape,
-                Layer::Buffered => p.buffered,
-            };
-            if shape.hits_segment(seg.a, seg.b) {
-                f(p)
-            }
-        })
-    }
-
-    /// Where the segment first meets a true outline, going from `seg.a`;
-    /// ties go to the lower piece id.
-    pub fn first_hit(&self, seg: Segment) -> Result<Option<Hit>, MapError> {
-        let mut best: Option<Hit> = None;
-        self.for_each_candidate(seg.bbox(), |p| {
-            if let Some(entry) = p.shape.entry(seg) {
-                let better = match &best {
-                    None => true,
-                    Some(b) => entry.cmp_exact(&b.entry).then(p.id.cmp(&b.piece)).is_lt(),
-                };
-                if better {
-                    best = Some(Hit { piece: p.id, obstacle: p.obstacle, entry, point: entry.point_on(seg) });
-                }
-            }
-        })?;
-        Ok(best)
     }
 }

@@ -46,7 +46,7 @@ use heapless::Vec;
 
 use crate::credence::{Credence, EchoGeometry, Kappa};
 use crate::geometry::{Point, Segment};
-use crate::map::{Layer, Map};
+use crate::map::{Layer, MapSource};
 use crate::window::{collect_beacons, CollectError, CollectStats, Strategy, Window, WindowError, WindowParams};
 
 /// Most beacons one window may hold.
@@ -179,8 +179,8 @@ impl core::ops::AddAssign for PredictStats {
 }
 
 /// Predicts the reading of the transducer whose window is `window`.
-pub fn predict<const P: usize, const V: usize, const C: usize, const R: usize, K: Credence + ?Sized>(
-    map: &Map<P, V, C, R>,
+pub fn predict<M: MapSource + ?Sized, K: Credence + ?Sized>(
+    map: &M,
     window: &Window,
     params: &PredictParams,
     credence: &K,
@@ -240,8 +240,8 @@ fn roots(ao: (f32, f32), e: (f32, f32), r: f32) -> Option<(f32, f32)> {
 }
 
 #[allow(clippy::too_many_arguments)]
-fn search_edge<const P: usize, const V: usize, const C: usize, const R: usize, K: Credence + ?Sized>(
-    map: &Map<P, V, C, R>,
+fn search_edge<M: MapSource + ?Sized, K: Credence + ?Sized>(
+    map: &M,
     ctx: &EdgeCtx,
     lo: f32,
     hi: f32,
@@ -356,8 +356,8 @@ fn search_edge<const P: usize, const V: usize, const C: usize, const R: usize, K
 /// Test 4: does the ray from the transducer to the point `v` (relative to
 /// it) meet any other piece? The ray stops a millimetre short of the point,
 /// so a neighbour that only touches the echo point does not hide it.
-fn occluded<const P: usize, const V: usize, const C: usize, const R: usize>(
-    map: &Map<P, V, C, R>,
+fn occluded<M: MapSource + ?Sized>(
+    map: &M,
     ctx: &EdgeCtx,
     v: (f32, f32),
     range: f32,
@@ -388,10 +388,7 @@ pub struct Nearest {
 
 /// `predict --geometric`: the nearest obstacle point in the wedge
 /// `|φ| ≤ θ_o` within `R_max` (no δ, κ or `R_min`); `None` if there is none.
-pub fn nearest_in_window<const P: usize, const V: usize, const C: usize, const R: usize>(
-    map: &Map<P, V, C, R>,
-    window: &Window,
-) -> Result<Option<Nearest>, PredictError> {
+pub fn nearest_in_window<M: MapSource + ?Sized>(map: &M, window: &Window) -> Result<Option<Nearest>, PredictError> {
     let mut best: Option<Nearest> = None;
     map.for_each_candidate(window.sector.bbox(), |p| {
         if let Some((d, q)) = window.sector.nearest(p.shape) {

@@ -3,7 +3,7 @@
 use super::{predict, PredictError, PredictParams, PredictStats, Prediction};
 use crate::credence::Credence;
 use crate::geometry::Point;
-use crate::map::Map;
+use crate::map::MapSource;
 use crate::window::Window;
 
 /// The robot's pose in the map frame (ROS: x forward, y left, heading
@@ -68,8 +68,8 @@ pub fn place_sensor(pose: &Pose, mount: &Mount) -> (Point, f32) {
 }
 
 /// Predicts one transducer: its window placed at `pose ∘ mount`.
-pub fn predict_mount<const P: usize, const V: usize, const C: usize, const R: usize, K: Credence + ?Sized>(
-    map: &Map<P, V, C, R>,
+pub fn predict_mount<M: MapSource + ?Sized, K: Credence + ?Sized>(
+    map: &M,
     pose: &Pose,
     mount: &Mount,
     params: &PredictParams,
@@ -83,8 +83,8 @@ pub fn predict_mount<const P: usize, const V: usize, const C: usize, const R: us
 /// Predicts every transducer of a ring for one pose into `out` (one slot per
 /// mount; `out` must be at least as long as `mounts`). Returns the summed
 /// work counts.
-pub fn predict_ring<const P: usize, const V: usize, const C: usize, const R: usize, K: Credence + ?Sized>(
-    map: &Map<P, V, C, R>,
+pub fn predict_ring<M: MapSource + ?Sized, K: Credence + ?Sized>(
+    map: &M,
     pose: &Pose,
     mounts: &[Mount],
     params: &PredictParams,

@@ -3,7 +3,7 @@
 
 use super::f32math::{sin_cos, sqrt};
 use crate::geometry::Point;
-use crate::map::Map;
+use crate::map::MapSource;
 use crate::predict::{Case, Mount, Prediction};
 
 /// What a predicted echo comes from, in the map frame (metres).
@@ -30,10 +30,7 @@ impl Target {
     /// The target a prediction stands for: its edge's line for Case I, the
     /// predicted echo point otherwise. `None` if the prediction's piece or
     /// edge is not in `map` (a prediction from another map).
-    pub fn of<const P: usize, const V: usize, const C: usize, const R: usize>(
-        map: &Map<P, V, C, R>,
-        p: &Prediction,
-    ) -> Option<Self> {
+    pub fn of<M: MapSource + ?Sized>(map: &M, p: &Prediction) -> Option<Self> {
         let mm = |q: Point| [q.x as f32 / 1000.0, q.y as f32 / 1000.0];
         if p.case != Case::I {
             return Some(Target::Point { point: mm(p.point) });

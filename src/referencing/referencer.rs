@@ -4,7 +4,7 @@ use super::ekf::{CycleUpdates, Ekf, EkfError, Update};
 use super::model::{Motion, MountM, Target};
 use super::verdict::{judge, Reading, Verdict, VerdictConfig, VerdictCounts};
 use crate::credence::Credence;
-use crate::map::Map;
+use crate::map::MapSource;
 use crate::predict::{predict_mount, Mount, Pose, PredictError, PredictParams, Prediction};
 
 /// Why a reading could not be processed.
@@ -45,8 +45,8 @@ pub struct ReadingReport {
 
 /// Predicts `mount` at `pose`, judges `reading`, and names the target.
 #[allow(clippy::too_many_arguments)]
-pub fn observe<const P: usize, const V: usize, const C: usize, const R: usize, K: Credence + ?Sized>(
-    map: &Map<P, V, C, R>,
+pub fn observe<M: MapSource + ?Sized, K: Credence + ?Sized>(
+    map: &M,
     pose: &Pose,
     mount: &Mount,
     params: &PredictParams,
@@ -90,9 +90,9 @@ impl Referencer {
     }
 
     /// One transducer's reading.
-    pub fn reading<const P: usize, const V: usize, const C: usize, const R: usize, K: Credence + ?Sized>(
+    pub fn reading<M: MapSource + ?Sized, K: Credence + ?Sized>(
         &mut self,
-        map: &Map<P, V, C, R>,
+        map: &M,
         mount: &Mount,
         params: &PredictParams,
         credence: &K,

@@ -4,7 +4,7 @@ use heapless::Vec;
 
 use super::{Sector, WindowError, WindowParams, MAX_PSEUDO_PATHS};
 use crate::geometry::Point;
-use crate::map::{Map, MapError};
+use crate::map::{MapError, MapSource};
 
 /// How to collect beacons.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -81,8 +81,8 @@ impl Window {
 
 /// Collects into `out` (cleared first) the ids of the pieces in the window,
 /// in grid order. On error `out` is left empty.
-pub fn collect_beacons<const P: usize, const V: usize, const C: usize, const R: usize, const B: usize>(
-    map: &Map<P, V, C, R>,
+pub fn collect_beacons<M: MapSource + ?Sized, const B: usize>(
+    map: &M,
     window: &Window,
     strategy: Strategy,
     out: &mut Vec<u16, B>,

@@ -2,7 +2,7 @@
 //! firmware's map → blob.
 
 use echoloc::geometry::{split_convex_with_holes, HolesError, Point, Ring, MAX_PIECE_VERTICES};
-use echoloc::map::{Capacity, Map, MapError, ObstacleKind, StandardMap};
+use echoloc::map::{Capacity, Map, MapError, MapSource, MapView, ObstacleKind};
 
 /// One obstacle as imported.
 #[derive(Clone, Debug, PartialEq)]
@@ -59,6 +59,22 @@ impl MapSummary {
         }
     }
 
+    /// The figures of a compiled map read in place.
+    pub fn of_view(v: &MapView<'_>, bytes: usize) -> Self {
+        let (cell_mm, cols, rows) = v.grid_dims();
+        Self {
+            polygons: v.obstacle_count(),
+            convex_pieces: v.piece_count(),
+            edges: v.true_vertex_count(),
+            bytes,
+            buffer_mm: v.buffer_mm(),
+            cell_mm,
+            grid: (cols, rows),
+            grid_refs: v.grid_refs(),
+            extra: serde_json::Map::new(),
+        }
+    }
+
     pub fn to_json(&self) -> String {
         let mut v = serde_json::json!({
             "polygons": self.polygons,
@@ -77,11 +93,31 @@ impl MapSummary {
     }
 }
 
-/// Builds the firmware's map from `shapes` and encodes it. The cell size
-/// starts at `cell_mm` and doubles until the grid fits the firmware's
-/// capacity. Errors name the shape.
+/// The map the host compiles into: the firmware reads the compiled blob in
+/// place, so only flash limits it; this is a generous host-side bound
+/// (16 384 pieces; piece ids are `u16`, which no flash of this class
+/// outgrows: 65 536 pieces need about 8 MiB of compiled map).
+pub type CompileMap = Map<{ COMPILE_PIECES }, 262_144, 262_144, 524_288>;
+const COMPILE_PIECES: usize = 16_384;
+const COMPILE_VERTICES: usize = 262_144;
+
+/// Builds the map from `shapes` and compiles it (blob version 2). The cell
+/// size starts at `cell_mm` and doubles until the grid fits. Errors name the
+/// shape. Runs on its own thread: the building map (about 5 MiB) is made on
+/// the stack before it is boxed in unoptimised builds.
 pub fn build_map(shapes: &[Shape], buffer_mm: u32, cell_mm: u32) -> Result<(Vec<u8>, MapSummary), String> {
-    let mut map: Box<StandardMap> = Box::default();
+    std::thread::scope(|s| {
+        std::thread::Builder::new()
+            .stack_size(64 << 20)
+            .spawn_scoped(s, || build_map_here(shapes, buffer_mm, cell_mm))
+            .map_err(|e| format!("cannot start the map builder: {e}"))?
+            .join()
+            .unwrap_or_else(|_| Err("the map builder panicked".to_string()))
+    })
+}
+
+fn build_map_here(shapes: &[Shape], buffer_mm: u32, cell_mm: u32) -> Result<(Vec<u8>, MapSummary), String> {
+    let mut map: Box<CompileMap> = Box::default();
     for (i, shape) in shapes.iter().enumerate() {
         match shape {
             Shape::Solid { outer, holes } => {
@@ -125,8 +161,8 @@ pub fn build_map(shapes: &[Shape], buffer_mm: u32, cell_mm: u32) -> Result<(Vec<
             Err(e) => return Err(map_error(e)),
         }
     }
-    let mut blob = vec![0u8; map.encoded_len()];
-    let n = map.encode(&mut blob).map_err(|e| format!("{e:?}"))?;
+    let mut blob = vec![0u8; map.compiled_len()];
+    let n = map.compile(&mut blob).map_err(|e| format!("{e:?}"))?;
     blob.truncate(n);
     let summary = MapSummary::of(&map, shapes.len(), n);
     Ok((blob, summary))
@@ -134,7 +170,7 @@ pub fn build_map(shapes: &[Shape], buffer_mm: u32, cell_mm: u32) -> Result<(Vec<
 
 fn map_error(e: MapError) -> String {
     match e {
-        MapError::Full(c) => format!("the map exceeds the firmware's capacity ({c:?}) of echoloc::map::StandardMap"),
+        MapError::Full(c) => format!("the map exceeds the compiler's capacity ({c:?}) of CompileMap"),
         e => format!("{e:?}"),
     }
 }
@@ -167,7 +203,7 @@ pub fn holes_error(e: HolesError<MapError>) -> String {
     }
 }
 
-/// What the whole map would need, against what `StandardMap` holds.
+/// What the whole map would need, against what `CompileMap` holds.
 fn capacity_error(shapes: &[Shape], c: Capacity) -> String {
     let (mut pieces, mut verts, mut buffered, mut obstacles) = (0usize, 0usize, 0usize, 0usize);
     for shape in shapes {
@@ -190,10 +226,10 @@ fn capacity_error(shapes: &[Shape], c: Capacity) -> String {
             }
         }
     }
-    let (p_cap, v_cap) = (1024, 12288);
+    let (p_cap, v_cap) = (COMPILE_PIECES, COMPILE_VERTICES);
     format!(
-        "the map exceeds the firmware's capacity ({c:?}) of echoloc::map::StandardMap: it needs {obstacles} obstacles and \
-         {pieces} convex pieces (StandardMap holds {p_cap} of each) and {verts} true + up to {buffered} buffered vertices \
+        "the map exceeds the compiler's capacity ({c:?}): it needs {obstacles} obstacles and \
+         {pieces} convex pieces (it holds {p_cap} of each) and {verts} true + up to {buffered} buffered vertices \
          (it holds {v_cap} in all); simplify more (--simplify-mm) or split the map"
     )
 }

@@ -14,13 +14,15 @@ mod geojson;
 pub mod render;
 mod ros;
 mod simplify;
+#[cfg(test)]
+mod view_identity;
 
 use std::fmt;
 use std::path::{Path, PathBuf};
 
 use clap::{Subcommand, ValueEnum};
 use echoloc::geometry::{Point, COORD_MAX};
-use echoloc::map::StandardMap;
+use echoloc::map::{MapView, StandardMap};
 
 pub use build::{build_map, MapSummary, Shape};
 
@@ -185,7 +187,7 @@ pub fn run(cmd: MapCmd) -> Result<String, LabError> {
             let png = match &preview {
                 Some(_) => {
                     let mut m: Box<StandardMap> = Box::default();
-                    m.load(&blob)
+                    m.load(AlignedBytes::new(&blob).bytes())
                         .map_err(|e| LabError(format!("{}: the new blob does not load: {e:?}", out.display())))?;
                     Some(render::preview(&m, src.grid.as_ref(), unknown))
                 }
@@ -201,8 +203,17 @@ pub fn run(cmd: MapCmd) -> Result<String, LabError> {
             Ok(summary.to_json())
         }
         MapCmd::Info { map } => {
-            let (m, bytes) = load_blob(&map)?;
-            Ok(MapSummary::of(&m, m.obstacles().len(), bytes.len()).to_json())
+            let bytes = std::fs::read(&map).map_err(|e| ImportError::Io { path: map.clone(), source: e })?;
+            let aligned = AlignedBytes::new(&bytes);
+            match MapView::new(aligned.bytes()) {
+                // A compiled map: read in place, as the firmware does, whatever its size.
+                Ok(v) => Ok(MapSummary::of_view(&v, bytes.len()).to_json()),
+                // Else the older blob, through the host map.
+                Err(_) => {
+                    let m = blob_to_map(&bytes, &map)?;
+                    Ok(MapSummary::of(&m, m.obstacles().len(), bytes.len()).to_json())
+                }
+            }
         }
         MapCmd::Export { map, out } => {
             let (m, _) = load_blob(&map)?;
@@ -231,10 +242,30 @@ pub fn load_blob(path: &Path) -> Result<(Box<StandardMap>, Vec<u8>), LabError> {
     Ok((blob_to_map(&bytes, path)?, bytes))
 }
 
-/// Loads blob bytes (read from, or made for, `path`) as the firmware does.
+/// Bytes on an 8-byte boundary, as a compiled map must be read in place.
+pub struct AlignedBytes {
+    words: Vec<u64>,
+    len: usize,
+}
+
+impl AlignedBytes {
+    pub fn new(bytes: &[u8]) -> Self {
+        let mut words = vec![0u64; bytes.len().div_ceil(8)];
+        bytemuck::cast_slice_mut::<u64, u8>(&mut words)[..bytes.len()].copy_from_slice(bytes);
+        Self { words, len: bytes.len() }
+    }
+
+    pub fn bytes(&self) -> &[u8] {
+        &bytemuck::cast_slice::<u64, u8>(&self.words)[..self.len]
+    }
+}
+
+/// Loads blob bytes (read from, or made for, `path`) into the host's
+/// `StandardMap` (the compiled form is checked in full on the way).
 pub fn blob_to_map(bytes: &[u8], path: &Path) -> Result<Box<StandardMap>, LabError> {
     let mut m: Box<StandardMap> = Box::default();
-    m.load(bytes).map_err(|e| LabError(format!("{}: not a valid map blob: {e:?}", path.display())))?;
+    m.load(AlignedBytes::new(bytes).bytes())
+        .map_err(|e| LabError(format!("{}: not a valid map blob: {e:?}", path.display())))?;
     Ok(m)
 }
 
