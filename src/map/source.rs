@@ -23,6 +23,21 @@ pub trait MapSource {
     /// `area`, through the grid (never a scan of the whole map), in grid order.
     fn for_each_candidate(&self, area: Rect, f: impl FnMut(Piece<'_>)) -> Result<QueryStats, MapError>;
 
+    /// Every obstacle, in id order.
+    fn obstacles_iter(&self) -> impl Iterator<Item = Obstacle> + '_ {
+        (0..self.obstacle_count() as u16).filter_map(|i| self.obstacle(i))
+    }
+
+    /// Every piece, in id order.
+    fn pieces_iter(&self) -> impl Iterator<Item = Piece<'_>> + '_ {
+        (0..self.piece_count() as u16).filter_map(|i| self.piece(i))
+    }
+
+    /// Bounding box of every buffered outline, or `None` for an empty map.
+    fn bounds_of_pieces(&self) -> Option<Rect> {
+        self.pieces_iter().map(|p| p.bbox).reduce(Rect::union)
+    }
+
     /// Calls `f` for each piece whose chosen outline the closed segment meets
     /// (exact t-vector test), through the grid.
     fn for_each_hit(&self, seg: Segment, layer: Layer, mut f: impl FnMut(Piece<'_>)) -> Result<QueryStats, MapError> {

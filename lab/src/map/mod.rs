@@ -22,7 +22,7 @@ use std::path::{Path, PathBuf};
 
 use clap::{Subcommand, ValueEnum};
 use echoloc::geometry::{Point, COORD_MAX};
-use echoloc::map::{MapView, StandardMap};
+use echoloc::map::{MapSource, MapView, StandardMap};
 
 pub use build::{build_map, MapSummary, Shape};
 
@@ -186,9 +186,9 @@ pub fn run(cmd: MapCmd) -> Result<String, LabError> {
             // Everything is computed before anything is written.
             let png = match &preview {
                 Some(_) => {
-                    let mut m: Box<StandardMap> = Box::default();
-                    m.load(AlignedBytes::new(&blob).bytes())
-                        .map_err(|e| LabError(format!("{}: the new blob does not load: {e:?}", out.display())))?;
+                    let aligned = AlignedBytes::new(&blob);
+                    let m = MapView::new(aligned.bytes())
+                        .map_err(|e| LabError(format!("{}: the new blob does not validate: {e:?}", out.display())))?;
                     Some(render::preview(&m, src.grid.as_ref(), unknown))
                 }
                 None => None,
@@ -216,18 +216,20 @@ pub fn run(cmd: MapCmd) -> Result<String, LabError> {
             }
         }
         MapCmd::Export { map, out } => {
-            let (m, _) = load_blob(&map)?;
+            let a = read_compiled(&map)?;
+            let m = view_of(&a, &map)?;
             let json = render::geojson(&m);
             write_atomically(&out, json.to_string().as_bytes())?;
             Ok(serde_json::json!({
-                "features": m.obstacles().len(),
+                "features": m.obstacle_count(),
                 "convex_pieces": m.piece_count(),
                 "out": out.display().to_string(),
             })
             .to_string())
         }
         MapCmd::Preview { map, out, grid, unknown } => {
-            let (m, _) = load_blob(&map)?;
+            let a = read_compiled(&map)?;
+            let m = view_of(&a, &map)?;
             let grid = grid.map(|g| ros::load(&g)).transpose()?;
             let png = render::preview(&m, grid.as_ref(), unknown);
             write_atomically(&out, &png)?;
@@ -240,6 +242,17 @@ pub fn run(cmd: MapCmd) -> Result<String, LabError> {
 pub fn load_blob(path: &Path) -> Result<(Box<StandardMap>, Vec<u8>), LabError> {
     let bytes = std::fs::read(path).map_err(|e| ImportError::Io { path: path.to_path_buf(), source: e })?;
     Ok((blob_to_map(&bytes, path)?, bytes))
+}
+
+/// Reads a map file into aligned bytes, ready for [`view_of`].
+pub fn read_compiled(path: &Path) -> Result<AlignedBytes, LabError> {
+    let bytes = std::fs::read(path).map_err(|e| ImportError::Io { path: path.to_path_buf(), source: e })?;
+    Ok(AlignedBytes::new(&bytes))
+}
+
+/// The compiled map in `a` (read from `path`), validated as the firmware does.
+pub fn view_of<'a>(a: &'a AlignedBytes, path: &Path) -> Result<MapView<'a>, LabError> {
+    MapView::new(a.bytes()).map_err(|e| LabError(format!("{}: not a valid compiled map: {e:?}", path.display())))
 }
 
 /// Bytes on an 8-byte boundary, as a compiled map must be read in place.

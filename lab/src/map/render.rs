@@ -1,7 +1,7 @@
 //! Back out of the blob: GeoJSON of the true pieces, and a PNG preview of
 //! the pieces over the occupancy grid they came from.
 
-use echoloc::map::{ObstacleKind, StandardMap};
+use echoloc::map::{MapSource, ObstacleKind};
 use serde_json::{json, Value};
 
 use super::ros::{Cell, Grid};
@@ -15,9 +15,9 @@ fn metres(v: i32) -> f64 {
 /// convex pieces (true outlines, counter-clockwise, metres; the pieces of one
 /// obstacle share edges) for a solid, a MultiLineString for a wall.
 /// Importing it again gives the same pieces.
-pub fn geojson(m: &StandardMap) -> Value {
+pub fn geojson<M: MapSource + ?Sized>(m: &M) -> Value {
     let mut feats = Vec::new();
-    for (i, o) in m.obstacles().iter().enumerate() {
+    for (i, o) in m.obstacles_iter().enumerate() {
         let pieces = (o.first_piece..o.first_piece + o.piece_count).filter_map(|id| m.piece(id));
         let coords: Vec<Value> = pieces
             .map(|p| {
@@ -155,12 +155,12 @@ const BUFFER: [u8; 3] = [0, 170, 80];
 /// piece's buffered outline (thin green) and the obstacles' true outline
 /// (blue: edges that no other piece of the obstacle shares). Without a grid
 /// the map's own bounds, with a 1 m margin, on white.
-pub fn preview(m: &StandardMap, grid: Option<&Grid>, unknown: Unknown) -> Vec<u8> {
+pub fn preview<M: MapSource + ?Sized>(m: &M, grid: Option<&Grid>, unknown: Unknown) -> Vec<u8> {
     preview_canvas(m, grid, unknown).png()
 }
 
 /// [`preview`] before it is encoded, to draw on.
-pub fn preview_canvas(m: &StandardMap, grid: Option<&Grid>, unknown: Unknown) -> Canvas {
+pub fn preview_canvas<M: MapSource + ?Sized>(m: &M, grid: Option<&Grid>, unknown: Unknown) -> Canvas {
     let mut cv = match grid {
         Some(g) => {
             let res = g.yaml.resolution * 1000.0;
@@ -173,7 +173,7 @@ pub fn preview_canvas(m: &StandardMap, grid: Option<&Grid>, unknown: Unknown) ->
                     }
                 }
             }
-            if let Some(b) = m.bounds() {
+            if let Some(b) = m.bounds_of_pieces() {
                 let col = |x: i32| ((x as f64 - g.yaml.origin[0] * 1000.0) / res).floor().max(0.0) as usize;
                 let row =
                     |y: i32| (g.height as f64 - (y as f64 - g.yaml.origin[1] * 1000.0) / res).floor().max(0.0) as usize;
@@ -211,7 +211,7 @@ pub fn preview_canvas(m: &StandardMap, grid: Option<&Grid>, unknown: Unknown) ->
             }
         }
         None => {
-            let b = m.bounds();
+            let b = m.bounds_of_pieces();
             let (x0, y0, x1, y1) = b.map_or((0.0, 0.0, 1.0, 1.0), |b| {
                 (b.min.x as f64 - 1000.0, b.min.y as f64 - 1000.0, b.max.x as f64 + 1000.0, b.max.y as f64 + 1000.0)
             });
@@ -221,13 +221,13 @@ pub fn preview_canvas(m: &StandardMap, grid: Option<&Grid>, unknown: Unknown) ->
         }
     };
     let f = |p: &echoloc::geometry::Point| (p.x as f64, p.y as f64);
-    for p in m.pieces() {
+    for p in m.pieces_iter() {
         let v: Vec<(f64, f64)> = p.shape.vertices().iter().map(f).collect();
         if v.len() >= 3 {
             cv.fill_convex(&v, PIECE_FILL, 0.35);
         }
     }
-    for p in m.pieces() {
+    for p in m.pieces_iter() {
         let b: Vec<(f64, f64)> = p.buffered.vertices().iter().map(f).collect();
         for i in 0..b.len() {
             let (a, c) = (b[i], b[(i + 1) % b.len()]);
@@ -245,7 +245,7 @@ pub fn preview_canvas(m: &StandardMap, grid: Option<&Grid>, unknown: Unknown) ->
             }
         }
     }
-    for o in m.obstacles() {
+    for o in m.obstacles_iter() {
         let pieces: Vec<Vec<(i32, i32)>> = (o.first_piece..o.first_piece + o.piece_count)
             .filter_map(|id| m.piece(id))
             .map(|p| p.shape.vertices().iter().map(|q| (q.x, q.y)).collect())
