@@ -122,3 +122,30 @@ fn panic(info: &core::panic::PanicInfo) -> ! {
     hprintln!("panic: {}", info);
     exit(false)
 }
+
+/// Bytes of RAM taken by statics: `.data`, `.bss` and `.uninit`, from
+/// cortex-m-rt's linker symbols (the stack is the rest of RAM).
+pub fn static_ram_bytes() -> usize {
+    extern "C" {
+        static __sdata: u32;
+        static __euninit: u32;
+    }
+    core::ptr::addr_of!(__euninit) as usize - core::ptr::addr_of!(__sdata) as usize
+}
+
+/// Bytes of flash the image takes: the vector table, `.text`, `.rodata`
+/// and `.data`'s initial values (flash starts at 0 on this board).
+pub fn flash_bytes() -> usize {
+    extern "C" {
+        static __erodata: u32;
+        static __sdata: u32;
+        static __edata: u32;
+    }
+    let data = core::ptr::addr_of!(__edata) as usize - core::ptr::addr_of!(__sdata) as usize;
+    core::ptr::addr_of!(__erodata) as usize + data
+}
+
+/// Prints one `metric NAME VALUE` line, the form `scripts/metrics.sh` reads.
+pub fn metric(name: &str, value: u64) {
+    hprintln!("metric {} {}", name, value);
+}

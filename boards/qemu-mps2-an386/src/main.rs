@@ -1,33 +1,49 @@
-//! echoloc on QEMU's `mps2-an386` (Cortex-M4F).
+//! echoloc on QEMU's `mps2-an386` (Cortex-M4F): the README's main command.
 //!
-//! Loads the office map blob (built by `echoloc-lab map import
-//! maps/office.geojson`), refuses a corrupted copy of it, runs segment
-//! queries through the grid index, prints what it found with the SysTick cost
-//! of each query (deterministic under `-icount shift=0`), then the stack's
-//! high-water mark (cortex-m-rt `paint-stack`), and exits through
-//! semihosting: 0 when every check passed, 1 otherwise. A HardFault or panic
-//! exits with 1 too, so a crash can never look like success.
+//! Both maps are compiled blobs (`echoloc-lab map import`) read in place
+//! from flash through a [`MapView`]: no copy of a map is made in RAM.
+//!
+//! 1. The office map: a corrupted copy is refused with a typed error; segment
+//!    queries through the grid; a Pioneer ring predicted by both
+//!    beacon-collection strategies, which must agree.
+//! 2. The real `depot` map (428 convex pieces): its validation cost, then the
+//!    budgets of issue #11 as `metric NAME VALUE` lines: instructions per
+//!    Pioneer ring and per window (full prediction with the quantised net,
+//!    over poses spread through the depot's free space), per κ, the stack of
+//!    a whole ring cycle (prediction, verdicts, EKF), static RAM and flash.
+//!    `scripts/metrics.sh` compares them with the committed snapshot.
+//!
+//! Costs are SysTick counts, deterministic under the runner's
+//! `-icount shift=0`, converted to instructions by the calibration loop.
+//! Exits through semihosting: 0 when every check passed, 1 otherwise (a
+//! HardFault or panic exits with 1 too).
 #![no_std]
 #![no_main]
+
+use core::hint::black_box;
 
 use cortex_m_rt::entry;
 use cortex_m_semihosting::hprintln;
 use echoloc::credence::net::CredenceNet;
+use echoloc::credence::{Credence, EchoGeometry};
 use echoloc::geometry::{isqrt, Point, Segment};
-use echoloc::map::{BlobError, Layer, StandardMap};
-use echoloc::predict::{predict_ring, Pose, PredictParams, PIONEER16};
+use echoloc::map::{Aligned, BlobError, Layer, MapSource, MapView};
+use echoloc::predict::{predict_ring, Pose, PredictParams, Prediction, PIONEER16};
+use echoloc::referencing::{Ekf, EkfConfig, Motion, Reading, Referencer, VerdictConfig};
 use echoloc::window::{Strategy, WindowParams};
-use qemu_mps2_an386::{calibrate, elapsed, exit, stack_high_water, start_systick, ticks};
+use qemu_mps2_an386::{
+    calibrate, elapsed, exit, first_unpainted, flash_bytes, metric, paint_free_stack, stack_bounds, stack_high_water,
+    start_systick, static_ram_bytes, ticks,
+};
 use static_cell::ConstStaticCell;
 
-/// The map lives in a static, initialised at compile time: no stack copy.
-static MAP: ConstStaticCell<StandardMap> = ConstStaticCell::new(StandardMap::new());
-/// The blob stays in flash.
-static BLOB: &[u8] = include_bytes!("../office.map");
-/// Scratch RAM for the corrupted copy.
-static SCRATCH: ConstStaticCell<[u8; 1024]> = ConstStaticCell::new([0; 1024]);
+/// The compiled maps, in flash, aligned for reading in place.
+static OFFICE: &Aligned<[u8]> = &Aligned(*include_bytes!("../office.map"));
+static DEPOT: &Aligned<[u8]> = &Aligned(*include_bytes!("../depot.map"));
+/// Scratch RAM for the corrupted copy of the office map.
+static SCRATCH: ConstStaticCell<Aligned<[u8; 4096]>> = ConstStaticCell::new(Aligned([0; 4096]));
 
-/// Segment queries, mm: (from, to, what a person would expect).
+/// Segment queries on the office map, mm: (from, to, what a person would expect).
 const QUERIES: [(Point, Point, &str); 6] = [
     (Point::new(1000, 3000), Point::new(9000, 3000), "east along y=3 m to the partition"),
     (Point::new(2800, 500), Point::new(2800, 4000), "north through the table"),
@@ -37,64 +53,63 @@ const QUERIES: [(Point, Point, &str); 6] = [
     (Point::new(4000, 4000), Point::new(4500, 4500), "short diagonal in free space"),
 ];
 
+/// Poses timed on the depot.
+const POSES: u32 = 32;
+
 #[entry]
 fn main() -> ! {
     let mut ok = true;
     let syst = start_systick();
-
     hprintln!("echoloc {} on mps2-an386 (Cortex-M4F)", env!("CARGO_PKG_VERSION"));
-    calibrate(&syst);
-    let map = MAP.take();
+    let per_tick = calibrate(&syst);
+    let net = CredenceNet::shipped();
 
-    // A corrupted copy must be refused with a typed error, and leave the map empty.
-    let scratch = SCRATCH.take();
-    let n = BLOB.len().min(scratch.len());
-    scratch[..n].copy_from_slice(&BLOB[..n]);
+    // --- The office map.
+    let scratch = &mut SCRATCH.take().0;
+    let n = OFFICE.0.len().min(scratch.len());
+    scratch[..n].copy_from_slice(&OFFICE.0[..n]);
     scratch[n - 1] ^= 0x40;
-    match map.load(&scratch[..n]) {
-        Err(BlobError::BadCrc { .. }) if map.piece_count() == 0 => hprintln!("corrupted blob: refused (BadCrc)"),
+    match MapView::new(&scratch[..n]) {
+        Err(BlobError::BadCrc { .. }) => hprintln!("corrupted blob: refused (BadCrc)"),
         other => {
-            hprintln!("FAIL: corrupted blob gave {:?}", other);
+            hprintln!("FAIL: corrupted blob gave {:?}", other.err());
             ok = false;
         }
     }
-
-    let t0 = ticks(&syst);
-    let loaded = map.load(BLOB);
-    let load_ticks = elapsed(t0, ticks(&syst));
-    if let Err(e) = loaded {
-        hprintln!("FAIL: map blob refused: {:?}", e);
-        exit(false);
-    }
-    let (cell, cols, rows) = map.grid_dims();
+    let office = match MapView::new(&OFFICE.0) {
+        Ok(v) => v,
+        Err(e) => {
+            hprintln!("FAIL: office map refused: {:?}", e);
+            exit(false);
+        }
+    };
+    let (cell, cols, rows) = office.grid_dims();
     hprintln!(
-        "map: {} bytes, {} obstacles, {} convex pieces, {} edges, t_b {} mm, grid {}x{} of {} mm, {} refs; load {} ticks",
-        BLOB.len(),
-        map.obstacles().len(),
-        map.piece_count(),
-        map.true_vertex_count(),
-        map.buffer_mm(),
+        "office: {} bytes in flash, {} obstacles, {} convex pieces, {} edges, t_b {} mm, grid {}x{} of {} mm, {} refs",
+        OFFICE.0.len(),
+        office.obstacle_count(),
+        office.piece_count(),
+        office.true_vertex_count(),
+        office.buffer_mm(),
         cols,
         rows,
         cell,
-        map.grid_refs(),
-        load_ticks
+        office.grid_refs()
     );
-
     for (i, &(a, b, what)) in QUERIES.iter().enumerate() {
         let seg = Segment::new(a, b);
         let t0 = ticks(&syst);
-        let first = map.first_hit(seg);
+        let first = office.first_hit(seg);
         let t1 = ticks(&syst);
         let mut buffered = 0u32;
-        let stats = map.for_each_hit(seg, Layer::Buffered, |_| buffered += 1);
+        let stats = office.for_each_hit(seg, Layer::Buffered, |_| buffered += 1);
         let (Ok(first), Ok(stats)) = (first, stats) else {
-            hprintln!("FAIL: query on an unfinished map");
+            hprintln!("FAIL: query refused");
             exit(false);
         };
         match first {
             Some(h) => {
-                let kind = map.obstacles()[h.obstacle as usize].kind;
+                let kind = office.obstacle(h.obstacle).map(|o| o.kind);
                 let range = isqrt(a.dist2(h.point) as u64);
                 hprintln!(
                     "q{} {}: first hit obstacle {} ({:?}) piece {} at ({}, {}) mm, range {} mm; {} buffered hits; {} cells, {} candidates; {} ticks",
@@ -112,22 +127,18 @@ fn main() -> ! {
             ),
         }
     }
-
-    // A full Pioneer ring prediction with the quantised credence net, by
-    // both beacon-collection strategies: they must agree.
     let pose = Pose { x_mm: 4000.0, y_mm: 4000.0, heading_rad: 0.0 };
-    let net = CredenceNet::shipped();
-    let window = WindowParams { tb_mm: map.buffer_mm(), ..WindowParams::MARGE };
+    let window = WindowParams { tb_mm: office.buffer_mm(), ..WindowParams::MARGE };
     let mut rings = [[None; 16]; 2];
     for (k, strategy) in [Strategy::Exact, Strategy::PseudoPaths].into_iter().enumerate() {
         let params = PredictParams { strategy, ..PredictParams::new(window) };
         let t0 = ticks(&syst);
-        let stats = predict_ring(&*map, &pose, &PIONEER16, &params, &net, &mut rings[k]);
+        let stats = predict_ring(&office, &pose, &PIONEER16, &params, &net, &mut rings[k]);
         let t = elapsed(t0, ticks(&syst));
         match stats {
             Ok(st) => hprintln!(
-                "ring16 {:?} at (4.0, 4.0) m, 0 deg: {} ticks; {} candidates, {} beacons, {} edges, {} kappa, {} occlusion tests",
-                strategy, t, st.collect.candidates, st.beacons, st.edges, st.kappa_evals, st.occlusion_tests
+                "ring16 {:?} at (4.0, 4.0) m, 0 deg: {} instructions; {} candidates, {} beacons, {} edges, {} kappa, {} occlusion tests",
+                strategy, t * per_tick, st.collect.candidates, st.beacons, st.edges, st.kappa_evals, st.occlusion_tests
             ),
             Err(e) => {
                 hprintln!("FAIL: ring prediction: {:?}", e);
@@ -155,7 +166,159 @@ fn main() -> ! {
         ok = false;
     }
 
+    // --- The depot map: validation, then the budgets.
+    let t0 = ticks(&syst);
+    let depot = MapView::new(black_box(&DEPOT.0));
+    let validate = elapsed(t0, ticks(&syst)) * per_tick;
+    let depot = match depot {
+        Ok(v) => v,
+        Err(e) => {
+            hprintln!("FAIL: depot map refused: {:?}", e);
+            exit(false);
+        }
+    };
+    hprintln!(
+        "depot: {} bytes in flash, {} obstacles, {} convex pieces, {} edges; validated in place",
+        DEPOT.0.len(),
+        depot.obstacle_count(),
+        depot.piece_count(),
+        depot.true_vertex_count()
+    );
+    metric("map_validate_insns", validate as u64);
+    metric("map_bytes_depot", DEPOT.0.len() as u64);
+
+    let params = PredictParams::new(WindowParams { tb_mm: depot.buffer_mm(), ..WindowParams::MARGE });
+    let poses = free_poses(&depot);
+    let (mut total, mut worst, mut predicted) = (0u64, 0u64, 0u32);
+    for pose in poses.iter() {
+        let mut out = [None; 16];
+        let t0 = ticks(&syst);
+        let r = predict_ring(&depot, black_box(pose), &PIONEER16, &params, &net, &mut out);
+        let t = (elapsed(t0, ticks(&syst)) * per_tick) as u64;
+        if let Err(e) = r {
+            hprintln!("FAIL: depot ring at {:?}: {:?}", pose, e);
+            ok = false;
+        }
+        predicted += out.iter().flatten().count() as u32;
+        total += t;
+        worst = worst.max(t);
+    }
+    let rings = poses.len().max(1) as u64;
+    hprintln!("depot: {} rings at free poses, {} of {} windows predicted an echo", rings, predicted, rings * 16);
+    if predicted < POSES * 4 {
+        hprintln!("FAIL: too few predictions for the timing to mean anything");
+        ok = false;
+    }
+    metric("insns_per_ring", total / rings);
+    metric("insns_per_ring_max", worst);
+    metric("insns_per_window", total / (rings * 16));
+    metric("insns_per_kappa", kappa_cost(&syst, per_tick, &net) as u64);
+
+    // Stack of a whole ring cycle (16 × odometry, prediction, verdict, EKF
+    // update, then the lost monitor), below this frame.
+    let (_, bottom) = stack_bounds();
+    let sp = paint_free_stack(bottom);
+    let cycle_ok = ring_cycle(&depot, &net, &params, &poses[0]);
+    let stack = sp - first_unpainted(bottom, sp);
+    if !cycle_ok || stack == 0 {
+        hprintln!("FAIL: ring cycle failed or measured no stack");
+        ok = false;
+    }
+    metric("stack_bytes", stack as u64);
+    metric("ram_static_bytes", static_ram_bytes() as u64);
+    let maps = OFFICE.0.len() + DEPOT.0.len();
+    metric("flash_bytes", (flash_bytes() - maps) as u64);
+    hprintln!("(flash_bytes is the image without its {} bytes of compiled maps)", maps);
+
     let (used, size) = stack_high_water();
     hprintln!("stack high-water mark: {} of {} bytes", used, size);
     exit(ok);
+}
+
+/// `POSES` poses spread through the depot's free space by a fixed
+/// generator: none inside a piece, none with a piece within 300 mm along
+/// either axis.
+fn free_poses(map: &MapView<'_>) -> heapless::Vec<Pose, { POSES as usize }> {
+    let mut out = heapless::Vec::new();
+    let Some(b) = map.bounds() else { return out };
+    let mut s = 0x2545_F491u32;
+    let mut next = move || {
+        s ^= s << 13;
+        s ^= s >> 17;
+        s ^= s << 5;
+        s
+    };
+    while !out.is_full() {
+        let x = b.min.x + (next() % (b.max.x - b.min.x) as u32) as i32;
+        let y = b.min.y + (next() % (b.max.y - b.min.y) as u32) as i32;
+        let heading = (next() % 6283) as f32 / 1000.0 - 3.1416;
+        let p = Point::new(x, y);
+        let mut free = true;
+        let _ = map.for_each_candidate(echoloc::geometry::Rect::around(p), |piece| {
+            free &= !piece.shape.tvector(p).is_inside();
+        });
+        for seg in [
+            Segment::new(Point::new(x - 300, y), Point::new(x + 300, y)),
+            Segment::new(Point::new(x, y - 300), Point::new(x, y + 300)),
+        ] {
+            free &= matches!(map.first_hit(seg), Ok(None));
+        }
+        if free {
+            let _ = out.push(Pose { x_mm: x as f32, y_mm: y as f32, heading_rad: heading });
+        }
+    }
+    out
+}
+
+/// One whole ring cycle through the core's `Referencer`, never inlined so
+/// that its frames lie below the caller's stack pointer. Each reading is the
+/// prediction from the true pose 30 mm off the estimate.
+#[inline(never)]
+fn ring_cycle(map: &MapView<'_>, net: &CredenceNet<'_>, params: &PredictParams, pose: &Pose) -> bool {
+    let x = [pose.x_mm / 1000.0, pose.y_mm / 1000.0, pose.heading_rad];
+    let Ok(ekf) = Ekf::new([x[0] + 0.03, x[1], x[2]], [0.05, 0.05, 0.03], EkfConfig::DEFAULT) else {
+        return false;
+    };
+    let mut truth: [Option<Prediction>; 16] = [None; 16];
+    if predict_ring(map, pose, &PIONEER16, params, net, &mut truth).is_err() {
+        return false;
+    }
+    let mut r = Referencer::new(ekf, VerdictConfig::POLAROID);
+    for (mount, p) in PIONEER16.iter().zip(truth.iter()) {
+        let reading = p.map_or(Reading::NoEcho, |p| Reading::Echo { range_mm: p.range_mm });
+        if r.odometry(&Motion { dx: 0.0, dy: 0.0, dphi: 0.0 }).is_err()
+            || black_box(r.reading(map, mount, params, net, reading)).is_err()
+        {
+            return false;
+        }
+    }
+    black_box(r.end_cycle());
+    true
+}
+
+/// Instructions per κ of the shipped net: a sweep of the input domain timed
+/// with the net and without it.
+fn kappa_cost(syst: &Option<cortex_m::peripheral::SYST>, per_tick: u32, net: &CredenceNet<'_>) -> u32 {
+    const N: u32 = 256;
+    let sweep = |i: u32| EchoGeometry {
+        range_mm: 500 + (i % 16) * 333,
+        theta_mdeg: (i / 16) as i32 * 3000 - 22_500,
+        delta_mdeg: 0,
+    };
+    let t0 = ticks(syst);
+    let mut sum = 0u32;
+    for i in 0..N {
+        sum = sum.wrapping_add(u32::from(net.kappa(&black_box(sweep(i))).to_bits()));
+    }
+    let with = elapsed(t0, ticks(syst));
+    black_box(sum);
+    let t0 = ticks(syst);
+    let mut base = 0u32;
+    for i in 0..N {
+        let e = black_box(sweep(i));
+        base = base.wrapping_add(e.range_mm ^ e.theta_mdeg as u32);
+    }
+    let without = elapsed(t0, ticks(syst));
+    black_box(base);
+    with.saturating_sub(without) * per_tick / N
 }
