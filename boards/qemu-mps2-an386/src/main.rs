@@ -251,7 +251,7 @@ fn free_poses(map: &MapView<'_>) -> heapless::Vec<Pose, { POSES as usize }> {
     while !out.is_full() {
         let x = b.min.x + (next() % (b.max.x - b.min.x) as u32) as i32;
         let y = b.min.y + (next() % (b.max.y - b.min.y) as u32) as i32;
-        let heading = (next() % 6283) as f32 / 1000.0 - 3.1416;
+        let heading = (next() % 6283) as f32 / 1000.0 - core::f32::consts::PI;
         let p = Point::new(x, y);
         let mut free = true;
         let _ = map.for_each_candidate(echoloc::geometry::Rect::around(p), |piece| {
