@@ -19,6 +19,7 @@
 //! | [`predict`] | range prediction: the four signature tests, Cases I–III, subsurface search, occlusion; rings of transducers |
 //! | [`map`] | the fixed-capacity obstacle map, its uniform grid index and its binary blob |
 //! | [`referencing`] | self-referencing: verdicts, the EKF over (x, y, φ), the paper's threshold method |
+//! | [`f32math`] | sin, cos and √ in single precision (the M4F has no double-precision FPU) |
 //! | [`scenario`] | scenario files: a recorded run, versioned and CRC-checked, read in place |
 //!
 //! Every geometric *decision* is exact integer arithmetic; there is no
@@ -47,6 +48,7 @@
 pub mod buffer;
 pub mod credence;
 pub mod driver;
+pub mod f32math;
 pub mod geometry;
 pub mod map;
 pub mod predict;

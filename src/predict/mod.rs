@@ -46,8 +46,11 @@ use heapless::Vec;
 
 use crate::credence::{Credence, EchoGeometry, Kappa};
 use crate::geometry::{Point, Segment};
+use crate::map::Piece;
 use crate::map::{Layer, MapSource};
-use crate::window::{collect_beacons, CollectError, CollectStats, Strategy, Window, WindowError, WindowParams};
+use crate::window::{
+    collect_beacons, is_beacon, CollectError, CollectStats, Strategy, Window, WindowError, WindowParams,
+};
 
 /// Most beacons one window may hold.
 pub const MAX_BEACONS: usize = 256;
@@ -179,7 +182,71 @@ impl core::ops::AddAssign for PredictStats {
 }
 
 /// Predicts the reading of the transducer whose window is `window`.
+///
+/// Pieces are visited nearest first (by the distance to their box) and the
+/// search stops at the first piece whose box lies beyond the best credible
+/// echo found: nothing there can be nearer. Ties in range go to the lower
+/// piece id, so the answer does not depend on the order of the visit. (A
+/// window with more candidates than [`MAX_BEACONS`] is searched in grid
+/// order without the early stop, with the same answer.)
 pub fn predict<M: MapSource + ?Sized, K: Credence + ?Sized>(
+    map: &M,
+    window: &Window,
+    params: &PredictParams,
+    credence: &K,
+) -> Result<(Option<Prediction>, PredictStats), PredictError> {
+    let sector = &window.sector;
+    let o = sector.apex;
+    // Candidates as `(box distance / 2 mm) << 16 | id`: sorting the keys
+    // sorts by a lower bound of the distance, then by id.
+    let mut keys: Vec<u32, MAX_BEACONS> = Vec::new();
+    let mut overflow = false;
+    let r_max = sector.r_max_mm as f32;
+    let q = map
+        .for_each_candidate(sector.bbox(), |p| {
+            let lb = box_distance_lower_bound(o, &p);
+            if lb > r_max {
+                return; // nothing of it within R_max
+            }
+            if keys.push(((lb * 0.5) as u32) << 16 | p.id as u32).is_err() {
+                overflow = true;
+            }
+        })
+        .map_err(|e| PredictError::Collect(CollectError::Map(e)))?;
+    if overflow {
+        return predict_in_grid_order(map, window, params, credence);
+    }
+    let mut stats = PredictStats::default();
+    stats.collect.cells = q.cells;
+    stats.collect.candidates = q.candidates;
+    keys.sort_unstable();
+    let mut best: Option<(f32, Prediction)> = None;
+    for &key in keys.iter() {
+        let lb = (key >> 16) as f32 * 2.0;
+        if best.is_some_and(|(r, _)| lb > r + 1.0) {
+            break; // this box and every later one lie beyond the best echo
+        }
+        let Some(piece) = map.piece(key as u16) else { continue };
+        if !is_beacon(window, params.strategy, &piece, &mut stats.collect) {
+            continue;
+        }
+        stats.beacons += 1;
+        search_piece(map, window, &piece, params, credence, &mut best, &mut stats);
+    }
+    Ok((best.map(|(_, p)| p), stats))
+}
+
+/// A lower bound (mm, with a millimetre to spare for `f32` rounding) of the
+/// distance from `o` to any point of the piece: the distance to its box.
+fn box_distance_lower_bound(o: Point, p: &Piece<'_>) -> f32 {
+    let b = p.bbox;
+    let dx = (b.min.x as i64 - o.x as i64).max(o.x as i64 - b.max.x as i64).max(0) as f32;
+    let dy = (b.min.y as i64 - o.y as i64).max(o.y as i64 - b.max.y as i64).max(0) as f32;
+    (crate::f32math::sqrt(dx * dx + dy * dy) * (1.0 - 1.0 / 1_048_576.0) - 1.0).max(0.0)
+}
+
+/// [`predict`] without the nearest-first visit: every beacon in grid order.
+fn predict_in_grid_order<M: MapSource + ?Sized, K: Credence + ?Sized>(
     map: &M,
     window: &Window,
     params: &PredictParams,
@@ -189,31 +256,43 @@ pub fn predict<M: MapSource + ?Sized, K: Credence + ?Sized>(
     let mut stats =
         PredictStats { collect: collect_beacons(map, window, params.strategy, &mut beacons)?, ..Default::default() };
     stats.beacons = beacons.len() as u32;
-    let sector = &window.sector;
-    let o = sector.apex;
-    let axis = sector.axis_unit();
-    // The best so far with its unrounded range: only a strictly nearer point replaces it.
     let mut best: Option<(f32, Prediction)> = None;
     for &id in &beacons {
         let Some(piece) = map.piece(id) else { continue };
-        let shape = piece.shape;
-        let t = shape.tvector(o);
-        if t.is_inside() {
-            continue; // the transducer is inside this obstacle: nothing to see of it
-        }
-        let fronts = shape.front_surfaces(t) & !piece.internal;
-        for edge in 0..shape.edge_count() {
-            if fronts & (1 << edge) == 0 {
-                continue;
-            }
-            let (a, b) = shape.edge(edge);
-            let Some((lo, hi)) = sector.edge_window(a, b) else { continue };
-            stats.edges += 1;
-            let ctx = EdgeCtx { o, a, b, axis, piece: id, obstacle: piece.obstacle, edge: edge as u8 };
-            search_edge(map, &ctx, lo, hi, sector.r_min_mm, sector.r_max_mm, params, credence, &mut best, &mut stats);
-        }
+        search_piece(map, window, &piece, params, credence, &mut best, &mut stats);
     }
     Ok((best.map(|(_, p)| p), stats))
+}
+
+/// Searches every front edge of one beacon that meets the window.
+fn search_piece<M: MapSource + ?Sized, K: Credence + ?Sized>(
+    map: &M,
+    window: &Window,
+    piece: &Piece<'_>,
+    params: &PredictParams,
+    credence: &K,
+    best: &mut Option<(f32, Prediction)>,
+    stats: &mut PredictStats,
+) {
+    let sector = &window.sector;
+    let o = sector.apex;
+    let shape = piece.shape;
+    let t = shape.tvector(o);
+    if t.is_inside() {
+        return; // the transducer is inside this obstacle: nothing to see of it
+    }
+    let axis = sector.axis_unit();
+    let fronts = shape.front_surfaces(t) & !piece.internal;
+    for edge in 0..shape.edge_count() {
+        if fronts & (1 << edge) == 0 {
+            continue;
+        }
+        let (a, b) = shape.edge(edge);
+        let Some((lo, hi)) = sector.edge_window(a, b) else { continue };
+        stats.edges += 1;
+        let ctx = EdgeCtx { o, a, b, axis, piece: piece.id, obstacle: piece.obstacle, edge: edge as u8 };
+        search_edge(map, &ctx, lo, hi, sector.r_min_mm, sector.r_max_mm, params, credence, best, stats);
+    }
 }
 
 struct EdgeCtx {
@@ -235,7 +314,7 @@ fn roots(ao: (f32, f32), e: (f32, f32), r: f32) -> Option<(f32, f32)> {
     if disc < 0.0 || ee == 0.0 {
         return None;
     }
-    let sq = libm::sqrtf(disc);
+    let sq = crate::f32math::sqrt(disc);
     Some(((-b - sq) / ee, (-b + sq) / ee))
 }
 
@@ -254,7 +333,7 @@ fn search_edge<M: MapSource + ?Sized, K: Credence + ?Sized>(
 ) {
     let ao = ((ctx.a.x as i64 - ctx.o.x as i64) as f32, (ctx.a.y as i64 - ctx.o.y as i64) as f32);
     let e = ((ctx.b.x as i64 - ctx.a.x as i64) as f32, (ctx.b.y as i64 - ctx.a.y as i64) as f32);
-    let len = libm::sqrtf(e.0 * e.0 + e.1 * e.1);
+    let len = crate::f32math::sqrt(e.0 * e.0 + e.1 * e.1);
     if len == 0.0 {
         return;
     }
@@ -294,9 +373,10 @@ fn search_edge<M: MapSource + ?Sized, K: Credence + ?Sized>(
                     break;
                 }
                 let v = (ao.0 + s * e.0, ao.1 + s * e.1);
-                let range = libm::sqrtf(v.0 * v.0 + v.1 * v.1);
-                if best.is_some_and(|(r, _)| range >= r) {
-                    break; // farther along only gets farther
+                let range = crate::f32math::sqrt(v.0 * v.0 + v.1 * v.1);
+                // Farther along only gets farther; an equal range goes to the lower piece id.
+                if best.is_some_and(|(r, p)| range > r || (range == r && ctx.piece >= p.piece)) {
+                    break;
                 }
                 let theta = libm::atan2f(ctx.axis.0 * v.1 - ctx.axis.1 * v.0, ctx.axis.0 * v.0 + ctx.axis.1 * v.1);
                 let delta = libm::atan2f((e.0 * v.0 + e.1 * v.1).abs(), (e.0 * v.1 - e.1 * v.0).abs());

@@ -59,7 +59,13 @@ pub const PIONEER16: [Mount; 16] = [
 /// The transducer's position (rounded to the mm) and heading in the map:
 /// `pose ∘ mount`.
 pub fn place_sensor(pose: &Pose, mount: &Mount) -> (Point, f32) {
-    let (c, s) = (libm::cosf(pose.heading_rad), libm::sinf(pose.heading_rad));
+    // Reduced first: the f32 sine and cosine hold their precision within ±200 rad.
+    let h = if pose.heading_rad.abs() > 100.0 {
+        libm::fmodf(pose.heading_rad, core::f32::consts::TAU)
+    } else {
+        pose.heading_rad
+    };
+    let (s, c) = crate::f32math::sin_cos(h);
     let (mx, my) = (mount.x_mm as f32, mount.y_mm as f32);
     let x = pose.x_mm + c * mx - s * my;
     let y = pose.y_mm + s * mx + c * my;

@@ -16,8 +16,8 @@
 //! assert!(ekf.state()[0] < 1.0); // the reading says the robot is short of 1 m
 //! ```
 
-use super::f32math::sqrt;
 use super::model::{compose, range_model, wrap, Motion, MountM, Target};
+use crate::f32math::sqrt;
 
 /// Filter settings.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -15,7 +15,7 @@
 //! the gap before it fires, judge its reading, update.
 
 pub mod ekf;
-pub mod f32math;
+pub use crate::f32math;
 pub mod model;
 mod referencer;
 pub mod threshold;

@@ -1,7 +1,7 @@
 //! Range measurement models (Leonard & Durrant-Whyte, DESIGN §4.6) and the
 //! odometry motion model, with analytic Jacobians. Metres and radians, `f32`.
 
-use super::f32math::{sin_cos, sqrt};
+use crate::f32math::{sin_cos, sqrt};
 use crate::geometry::Point;
 use crate::map::MapSource;
 use crate::predict::{Case, Mount, Prediction};

@@ -4,7 +4,7 @@ use heapless::Vec;
 
 use super::{Sector, WindowError, WindowParams, MAX_PSEUDO_PATHS};
 use crate::geometry::Point;
-use crate::map::{MapError, MapSource};
+use crate::map::{MapError, MapSource, Piece};
 
 /// How to collect beacons.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -79,6 +79,28 @@ impl Window {
     }
 }
 
+/// Whether `p` is a beacon of `window` by `strategy`, counting the tests.
+pub fn is_beacon(window: &Window, strategy: Strategy, p: &Piece<'_>, stats: &mut CollectStats) -> bool {
+    let o = window.sector.apex;
+    match strategy {
+        Strategy::PseudoPaths => {
+            let shape = p.buffered;
+            let to = shape.tvector(o);
+            for &g in &window.paths {
+                stats.path_tests += 1;
+                if shape.hits_segment_with(o, to, g, shape.tvector(g)) {
+                    return true;
+                }
+            }
+            false
+        }
+        Strategy::Exact => {
+            stats.sector_tests += 1;
+            window.sector.meets(p.shape)
+        }
+    }
+}
+
 /// Collects into `out` (cleared first) the ids of the pieces in the window,
 /// in grid order. On error `out` is left empty.
 pub fn collect_beacons<M: MapSource + ?Sized, const B: usize>(
@@ -90,28 +112,9 @@ pub fn collect_beacons<M: MapSource + ?Sized, const B: usize>(
     out.clear();
     let mut stats = CollectStats::default();
     let mut full = false;
-    let o = window.sector.apex;
     let q = map
         .for_each_candidate(window.sector.bbox(), |p| {
-            let hit = match strategy {
-                Strategy::PseudoPaths => {
-                    let shape = p.buffered;
-                    let to = shape.tvector(o);
-                    let mut hit = false;
-                    for &g in &window.paths {
-                        stats.path_tests += 1;
-                        if shape.hits_segment_with(o, to, g, shape.tvector(g)) {
-                            hit = true;
-                            break;
-                        }
-                    }
-                    hit
-                }
-                Strategy::Exact => {
-                    stats.sector_tests += 1;
-                    window.sector.meets(p.shape)
-                }
-            };
+            let hit = is_beacon(window, strategy, &p, &mut stats);
             if hit && out.push(p.id).is_err() {
                 full = true;
             }

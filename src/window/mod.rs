@@ -34,6 +34,6 @@ mod collect;
 mod params;
 mod sector;
 
-pub use collect::{collect_beacons, CollectError, CollectStats, Strategy, Window};
+pub use collect::{collect_beacons, is_beacon, CollectError, CollectStats, Strategy, Window};
 pub use params::{PathLayout, WindowError, WindowParams, MAX_PSEUDO_PATHS, MAX_RANGE_MM};
 pub use sector::Sector;

@@ -107,7 +107,7 @@ impl WindowParams {
 
     /// Eq. (1): `w_min = d_s_min · cos δ_max`, mm.
     pub fn w_min_mm(&self) -> f32 {
-        self.ds_min_mm as f32 * libm::cosf(self.delta_max_deg.to_radians())
+        self.ds_min_mm as f32 * crate::f32math::sin_cos(self.delta_max_deg.to_radians()).1
     }
 
     /// `I_b` of eq. (3): +1 unbuffered, −1 buffered.

@@ -10,6 +10,7 @@
 use crate::geometry::{cross, dot, Convex, Frac, ParamRange, Point, Rect, U256};
 
 use super::WindowError;
+use crate::f32math::sin_cos;
 
 /// Length of the integer direction vectors.
 const DIR_SCALE: f32 = 16384.0;
@@ -36,7 +37,8 @@ pub struct Sector {
 }
 
 fn dir(angle: f32) -> (i64, i64) {
-    (libm::roundf(libm::cosf(angle) * DIR_SCALE) as i64, libm::roundf(libm::sinf(angle) * DIR_SCALE) as i64)
+    let (s, c) = sin_cos(angle);
+    (libm::roundf(c * DIR_SCALE) as i64, libm::roundf(s * DIR_SCALE) as i64)
 }
 
 impl Sector {
@@ -80,7 +82,10 @@ impl Sector {
             axis: dir(heading_rad),
             left: dir(heading_rad + half_angle_rad),
             right: dir(heading_rad - half_angle_rad),
-            unit: (libm::cosf(heading_rad), libm::sinf(heading_rad)),
+            unit: {
+                let (s, c) = sin_cos(heading_rad);
+                (c, s)
+            },
         })
     }
 
@@ -103,10 +108,8 @@ impl Sector {
         let r = self.r_max_mm as f32 + 1.0;
         let mut b = Rect::around(self.apex);
         let at = |a: f32| {
-            Point::new(
-                self.apex.x + libm::roundf(libm::cosf(a) * r) as i32,
-                self.apex.y + libm::roundf(libm::sinf(a) * r) as i32,
-            )
+            let (s, c) = sin_cos(a);
+            Point::new(self.apex.x + libm::roundf(c * r) as i32, self.apex.y + libm::roundf(s * r) as i32)
         };
         let (lo, hi) = (self.heading_rad - self.half_angle_rad, self.heading_rad + self.half_angle_rad);
         b = b.union_point(at(lo)).union_point(at(hi));

@@ -1,0 +1,58 @@
+#!/usr/bin/env bash
+# Where the Cortex-M4's instructions go: runs the `ring_profile` firmware
+# under QEMU with its execution log (-d in_asm,exec,nochain), counts the
+# instructions of every executed block and attributes them to the symbol
+# that holds the block's address. Prints the top functions (self cost).
+# Usage: bash scripts/m4-profile.sh [TOP]
+set -euo pipefail
+cd "$(dirname "$0")/.."
+target=thumbv7em-none-eabihf
+cargo build -q -p qemu-mps2-an386 --bin ring_profile --target "$target" --release
+elf="target/$target/release/ring_profile"
+log=$(mktemp)
+trap 'rm -f "$log" "$log.sym"' EXIT
+timeout 300 qemu-system-arm -cpu cortex-m4 -machine mps2-an386 -nographic -monitor none -serial none \
+  -icount shift=0 -semihosting-config enable=on,target=native -kernel "$elf" \
+  -d in_asm,exec,nochain -D "$log"
+host=$(rustc -vV | sed -n 's/^host: //p')
+nm="$(rustc --print sysroot)/lib/rustlib/$host/bin/llvm-nm"
+"$nm" -n -C --defined-only "$elf" | awk '$2 ~ /^[tTwW]$/' >"$log.sym"
+python3 - "$log" "$log.sym" "${1:-30}" <<'PY'
+import sys, re, bisect, collections
+log, symf, top = sys.argv[1], sys.argv[2], int(sys.argv[3])
+syms = []
+for line in open(symf):
+    parts = line.split(None, 2)
+    if len(parts) == 3:
+        syms.append((int(parts[0], 16) & ~1, parts[2].strip()))
+syms.sort()
+addrs = [a for a, _ in syms]
+size = {}            # block start -> instructions
+cur = None
+runs = collections.Counter()
+for line in open(log, errors="replace"):
+    if line.startswith("IN:"):
+        cur = None
+        continue
+    m = re.match(r"0x([0-9a-f]{8}):\s", line)
+    if m and cur is not None:
+        size[cur] = size.get(cur, 0) + 1
+        continue
+    if m and cur is None:
+        cur = int(m.group(1), 16)
+        size[cur] = 1
+        continue
+    m = re.search(r"Trace \d+: 0x[0-9a-f]+ \[[0-9a-f]+/([0-9a-f]+)/", line)
+    if m:
+        runs[int(m.group(1), 16)] += 1
+by = collections.Counter()
+total = 0
+for pc, n in runs.items():
+    k = size.get(pc, 1) * n
+    total += k
+    i = bisect.bisect_right(addrs, pc) - 1
+    by[syms[i][1] if i >= 0 else "?"] += k
+print(f"{total} instructions executed")
+for name, k in by.most_common(top):
+    print(f"{k:>10} {100.0 * k / total:5.1f}%  {name[:110]}")
+PY
