@@ -129,8 +129,10 @@ pub(super) struct GridRef<'a> {
 impl GridRef<'_> {
     /// Cell column (or row) of a coordinate, clamped into the grid.
     pub(super) fn cell_of(&self, v: i32, origin: i32, n: u16) -> u16 {
-        let d = (v as i64 - origin as i64).max(0) / self.cell_mm.max(1) as i64;
-        d.min(n as i64 - 1).max(0) as u16
+        // Below 2³² after the clamp: one hardware division on a Cortex-M4
+        // (an i64 division is a library call).
+        let off = (v as i64 - origin as i64).clamp(0, u32::MAX as i64) as u32;
+        (off / self.cell_mm.max(1)).min((n as u32).saturating_sub(1)) as u16
     }
 
     /// The cells `(x0, y0, x1, y1)` a box covers, clamped into the grid.

@@ -160,7 +160,8 @@ impl From<CollectError> for PredictError {
 pub struct PredictStats {
     /// The beacon collection's counts.
     pub collect: CollectStats,
-    /// Beacons found.
+    /// Beacons searched: for the exact strategy, every candidate searched
+    /// before the early stop (its edge clipping is the exact test).
     pub beacons: u32,
     /// Front edges that meet the window.
     pub edges: u32,
@@ -227,7 +228,10 @@ pub fn predict<M: MapSource + ?Sized, K: Credence + ?Sized>(
             break; // this box and every later one lie beyond the best echo
         }
         let Some(piece) = map.piece(key as u16) else { continue };
-        if !is_beacon(window, params.strategy, &piece, &mut stats.collect) {
+        // The exact strategy needs no test of its own here: an edge the
+        // search clips into the window makes the piece meet the sector, and
+        // a piece that does not meet it has no such edge.
+        if params.strategy != Strategy::Exact && !is_beacon(window, params.strategy, &piece, &mut stats.collect) {
             continue;
         }
         stats.beacons += 1;

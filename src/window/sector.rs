@@ -159,6 +159,9 @@ impl Sector {
     /// `|(a−o)·den + num·e|²` against `r²·den²`, in 256 bits.
     fn cmp_dist(&self, a: Point, e: (i64, i64), s: Frac, r: u32) -> core::cmp::Ordering {
         let ao = a.sub(self.apex);
+        if let Some(o) = cmp_dist_filtered(ao, e, s, r) {
+            return o;
+        }
         let x = ao.0 as i128 * s.den + s.num * e.0 as i128;
         let y = ao.1 as i128 * s.den + s.num * e.1 as i128;
         let lhs = U256::square(x).add(U256::square(y));
@@ -201,10 +204,15 @@ impl Sector {
             c.hi
         } else {
             // The foot: squared distance cross²/|e|², exact in u128.
-            let cr = cross(e, oa) as i128;
-            let lhs = cr.unsigned_abs() * cr.unsigned_abs();
-            let rhs = (r as u128) * (r as u128) * (ee as u128);
-            return lhs <= rhs;
+            let cr = cross(e, oa).unsigned_abs();
+            let r2 = r as u64 * r as u64;
+            // In u64 unless a side overflows it (then that side is larger).
+            return match (cr.checked_mul(cr), r2.checked_mul(ee as u64)) {
+                (Some(l), Some(rh)) => l <= rh,
+                (None, Some(_)) => false,
+                (Some(_), None) => true,
+                (None, None) => (cr as u128) * (cr as u128) <= (r2 as u128) * (ee as u128),
+            };
         };
         self.cmp_dist(a, e, s, r).is_le()
     }
@@ -266,6 +274,42 @@ impl Sector {
             }
         }
         best.filter(|_| within)
+    }
+}
+
+/// [`Sector::cmp_dist`] decided in `f32` when the answer is clear: `None`
+/// near a tie (or outside the bound's assumptions), for the exact test.
+///
+/// The bound: with `s = num/den ∈ [0, 1]`, integers below 2²⁴ (converted
+/// exactly) and `u = 2⁻²⁴`, the computed `s` is within `4u·s`, each computed
+/// coordinate `p` within `6u·|e| + u·|p|`, and the computed `|p|²` within
+/// about `20·M²·u` of the true one, `M = |ao|₁ + |e|₁`. The margin used,
+/// `M²/2¹⁶ + r²/2²⁰`, is more than twelve times that, rounding of the margin
+/// and of `r²` included.
+fn cmp_dist_filtered(ao: (i64, i64), e: (i64, i64), s: Frac, r: u32) -> Option<core::cmp::Ordering> {
+    const LIM: i64 = 1 << 24;
+    let fits = |v: i64| -LIM < v && v < LIM;
+    if !(fits(ao.0) && fits(ao.1) && fits(e.0) && fits(e.1)) || r >= 1 << 24 {
+        return None;
+    }
+    let (num, den) = (i32::try_from(s.num).ok()?, i32::try_from(s.den).ok()?);
+    if !(0 <= num && num <= den && den > 0) {
+        return None;
+    }
+    let sf = num as f32 / den as f32;
+    let f = |v: i64| v as i32 as f32;
+    let (px, py) = (f(ao.0) + sf * f(e.0), f(ao.1) + sf * f(e.1));
+    let d2 = px * px + py * py;
+    let rf = r as f32;
+    let r2 = rf * rf;
+    let m = (ao.0.abs() + ao.1.abs() + e.0.abs() + e.1.abs()) as i32 as f32;
+    let tol = m * m * (1.0 / 65_536.0) + r2 * (1.0 / 1_048_576.0);
+    if d2 > r2 + tol {
+        Some(core::cmp::Ordering::Greater)
+    } else if d2 < r2 - tol {
+        Some(core::cmp::Ordering::Less)
+    } else {
+        None
     }
 }
 
@@ -350,5 +394,45 @@ mod tests {
             }
             assert!(b.contains(p(100, -200)));
         }
+    }
+
+    #[test]
+    fn filtered_distance_agrees_with_the_exact_comparison() {
+        // Random clipped points against random radii, many of them near a
+        // tie: whenever the filter decides, it decides as the 256-bit test.
+        let mut x = 0x9E37_79B9_7F4A_7C15u64;
+        let mut next = move |m: u64| {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            x % m
+        };
+        let s = Sector::new(p(0, 0), 0.0, 0.5, 0, 100_000).unwrap();
+        let (mut decided, mut near) = (0, 0);
+        for i in 0..200_000 {
+            let big = if i % 3 == 0 { 20_000_000 } else { 20_000 };
+            let a = p(next(big) as i32 - big as i32 / 2, next(big) as i32 - big as i32 / 2);
+            let e = (next(big) as i64 - big as i64 / 2, next(big) as i64 - big as i64 / 2);
+            let den = next(1 << 30) as i128 + 1;
+            let frac = Frac { num: next(den as u64 + 1) as i128, den };
+            let ao = a.sub(s.apex);
+            // Half the radii at the point's own distance, rounded: near ties.
+            let d = ((ao.0 as f64 + frac.to_f64() * e.0 as f64).hypot(ao.1 as f64 + frac.to_f64() * e.1 as f64)) as i64;
+            let r = if i % 2 == 0 { (d + next(3) as i64 - 1).clamp(0, 99_999) as u32 } else { next(100_000) as u32 };
+            let ao_exact = {
+                let x = ao.0 as i128 * frac.den + frac.num * e.0 as i128;
+                let y = ao.1 as i128 * frac.den + frac.num * e.1 as i128;
+                let d2 = frac.den.unsigned_abs() * frac.den.unsigned_abs();
+                U256::square(x).add(U256::square(y)).cmp(&U256::mul(r as u128 * r as u128, d2))
+            };
+            match cmp_dist_filtered(ao, e, frac, r) {
+                Some(o) => {
+                    decided += 1;
+                    assert_eq!(o, ao_exact, "a {a:?} e {e:?} s {frac:?} r {r}");
+                }
+                None => near += 1,
+            }
+        }
+        assert!(decided > 150_000 && near > 100, "decided {decided}, left to the exact test {near}");
     }
 }
