@@ -7,7 +7,11 @@ cd "$(dirname "$0")/.."
 bash scripts/setup.sh
 
 target=thumbv7em-none-eabihf
-cargo run -q -p qemu-mps2-an386 --target "$target" --release
+out=$(cargo run -q -p qemu-mps2-an386 --target "$target" --release)
+echo "$out"
+echo
+echo "budgets (issue #11) against the committed snapshot:"
+bash scripts/metrics.sh <<<"$out"
 elf="target/$target/release/qemu-mps2-an386"
 host=$(rustc -vV | sed -n 's/^host: //p')
 size="$(rustc --print sysroot)/lib/rustlib/$host/bin/llvm-size"

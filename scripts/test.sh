@@ -42,13 +42,15 @@ cargo test -q --workspace 2>&1 | tee target/host-tests.log
 # One closing line for CI readers: the sum over every test binary.
 awk '/^test result:/ { p += $4; f += $6 } END { printf "host tests: %d passed, %d failed\n", p, f }' target/host-tests.log
 
-step "QEMU firmware runs (timeout in the runner): main, the depot map, one kappa, the EKF"
+step "QEMU firmware runs (timeout in the runner): main with its metrics, the depot map, one kappa, the EKF"
 out=$(cargo run -q -p qemu-mps2-an386 --target thumbv7em-none-eabihf --release 2>&1) || {
   echo "$out"
   echo "firmware exited non-zero"
   exit 1
 }
 echo "$out"
+# The budgets against the committed snapshot: fails when a figure grew by more than 5 %.
+bash scripts/metrics.sh <<<"$out"
 grep -q "corrupted blob: refused" <<<"$out"
 grep -q "stack high-water mark" <<<"$out"
 grep -q "ring16 PseudoPaths" <<<"$out"

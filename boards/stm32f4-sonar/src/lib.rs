@@ -28,17 +28,14 @@
 //!
 //! # Memory
 //!
-//! The `StandardMap` lives in a static (`.bss`, 178 228 bytes), filled in
-//! place from the office map blob, which stays in flash. cortex-m-rt puts the
-//! stack at the top of the 192 KiB and lets it grow down towards `.bss`: it
-//! gets the remaining 18 376 bytes. The deepest path, one transducer's
-//! prediction ([`expect`]) called from the main loop, needs about 9 KiB (by
-//! the frames in the disassembly: about 1 KiB for the main loop, 7 KiB for
-//! `expect` with the prediction inlined into it, under 1 KiB below; the QEMU
-//! board measures 8 936 bytes for a whole ring prediction), so about 9 KiB
-//! is spare. Nothing would catch an
-//! overflow into the map; moving the stack into the 64 KiB of core-coupled
-//! RAM (see `memory.x`) would give it room and make an overflow fault.
+//! The map is the compiled office map, read in place from flash through a
+//! `MapView` (validated once at boot): no copy of it in RAM, whatever its
+//! size. Static RAM is 4 bytes (`.bss`); flash 46 992 bytes (`.text` 41 464,
+//! `.rodata` 5 100 with the 2 676-byte map, vector table 428), by
+//! `llvm-size -A` on the release build. The stack takes the rest of the
+//! 192 KiB; the QEMU board measures about 9 KiB for a whole ring cycle
+//! (`metric stack_bytes`), which this board's one-transducer prediction
+//! ([`expect`]) does not exceed.
 #![no_std]
 #![deny(unsafe_code)]
 #![deny(missing_docs)]
@@ -48,7 +45,7 @@ use core::sync::atomic::{AtomicU32, Ordering};
 use cortex_m_rt::{exception, ExceptionFrame};
 use echoloc::credence::net::CredenceNet;
 use echoloc::driver::{Eeruf, ModuleConfig, Outcome, Ring, RingConfig, RingTiming, SpeedOfSound, Timing};
-use echoloc::map::StandardMap;
+use echoloc::map::MapView;
 use echoloc::predict::{predict_mount, Pose, PredictError, PredictParams, Prediction, PIONEER16};
 use echoloc::referencing::{self, Reading, Verdict, VerdictConfig, VerdictCounts};
 use echoloc::window::WindowParams;
@@ -154,7 +151,7 @@ pub enum Expected {
 /// sixteenth of a ring prediction: it runs in the ring-down gap before that
 /// transducer fires.
 pub fn expect(
-    map: &StandardMap,
+    map: &MapView<'_>,
     pose: &Pose,
     transducer: u8,
     params: &PredictParams,

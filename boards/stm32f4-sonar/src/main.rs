@@ -2,7 +2,8 @@
 //!
 //! Brings up the clocks (168 MHz from the 8 MHz HSE), the 1 MHz TIM5 clock
 //! and the sonar pins (see the library's docs for the wiring), loads the
-//! office map blob into a static `StandardMap`, and runs the ring for ever:
+//! compiled office map in place from flash (a `MapView`: no copy in RAM),
+//! and runs the ring for ever:
 //! the ring fires on its own schedule (`Ring::poll` never waits), each
 //! transducer's reading is compared with what the map predicts for it from
 //! the current pose estimate, and each transducer is predicted in the
@@ -18,10 +19,9 @@
 
 use cortex_m_rt::entry;
 use echoloc::driver::{Error, Module, Ring, Schedule};
-use echoloc::map::StandardMap;
+use echoloc::map::{Aligned, MapSource, MapView};
 use echoloc::predict::Pose;
 use echoloc::referencing::VerdictCounts;
-use static_cell::ConstStaticCell;
 use stm32f4_sonar::{
     credence, expect, judge, map_agrees, predict_params, Expected, SonarRing, Tim5Clock, MODULE_TIMING, RING_TIMING,
     TRANSDUCERS,
@@ -30,12 +30,9 @@ use stm32f4xx_hal::pac;
 use stm32f4xx_hal::prelude::*;
 use stm32f4xx_hal::rcc::Config;
 
-/// The map lives in a static, initialised at compile time (all zero, in
-/// `.bss`): no stack copy, no flash image.
-static MAP: ConstStaticCell<StandardMap> = ConstStaticCell::new(StandardMap::new());
-/// The office map blob (`echoloc-lab map import maps/office.geojson`), the
-/// same one the QEMU board runs; it stays in flash.
-static BLOB: &[u8] = include_bytes!("../../qemu-mps2-an386/office.map");
+/// The compiled office map (`echoloc-lab map import maps/office.geojson`),
+/// the same one the QEMU board runs; it stays in flash and is read in place.
+static BLOB: &Aligned<[u8]> = &Aligned(*include_bytes!("../../qemu-mps2-an386/office.map"));
 
 /// Where the robot starts in the office map (mm, rad): the pose estimate
 /// until a pose filter moves it.
@@ -70,10 +67,9 @@ fn main() -> ! {
     let module = Module::new(init, echo, addr, &clock, MODULE_TIMING).with_binh(binh);
     let mut ring: SonarRing<'_> = Ring::new(module, Schedule::spread(), RING_TIMING);
 
-    let map = MAP.take();
-    if map.load(BLOB).is_err() {
+    let Ok(map) = MapView::new(&BLOB.0) else {
         panic!("the office map blob was refused");
-    }
+    };
     let params = predict_params(map.buffer_mm());
     let net = credence();
     let pose = START;
@@ -82,7 +78,7 @@ fn main() -> ! {
     let mut expected = [Expected::Unknown; TRANSDUCERS];
     // What transducer `t` should read, into its slot of `expected`.
     let refresh = |expected: &mut [Expected; TRANSDUCERS], t: u8| {
-        expected[usize::from(t)] = expect(map, &pose, t, &params, &net).unwrap_or(Expected::Unknown);
+        expected[usize::from(t)] = expect(&map, &pose, t, &params, &net).unwrap_or(Expected::Unknown);
     };
     let mut tally = VerdictCounts::default();
     if let Some(t) = ring.schedule().transducer(0) {

@@ -1,8 +1,9 @@
 //! echoloc on QEMU's `mps2-an386` with a real map: the Nav2 `depot`
 //! occupancy grid, imported by `echoloc-lab map import
 //! ../shared/data/maps/depot.yaml` (marching squares, 50 mm simplification,
-//! convex pieces with holes). Loads the blob into a `StandardMap`, prints
-//! what it holds, runs segment queries across the depot and exits through
+//! convex pieces with holes), compiled and read in place from flash through
+//! a `MapView` (no copy in RAM). Prints what it holds, runs segment queries
+//! across the depot and exits through
 //! semihosting: 0 when the map loaded and every query found what a person
 //! looking at the depot would expect, 1 otherwise (HardFault and panic too).
 //!
@@ -13,14 +14,11 @@
 use cortex_m_rt::entry;
 use cortex_m_semihosting::hprintln;
 use echoloc::geometry::{isqrt, Point, Segment};
-use echoloc::map::{Layer, StandardMap};
+use echoloc::map::{Aligned, Layer, MapSource, MapView};
 use qemu_mps2_an386::exit;
-use static_cell::ConstStaticCell;
 
-/// The map lives in a static, initialised at compile time: no stack copy.
-static MAP: ConstStaticCell<StandardMap> = ConstStaticCell::new(StandardMap::new());
-/// The blob stays in flash.
-static BLOB: &[u8] = include_bytes!("../../depot.map");
+/// The compiled map stays in flash, aligned for reading in place.
+static BLOB: &Aligned<[u8]> = &Aligned(*include_bytes!("../../depot.map"));
 
 /// Segment queries, mm: (from, to, whether the true map should be hit, what).
 /// The depot is 30.2 m × 15.35 m with its origin at the lower-left corner.
@@ -35,17 +33,19 @@ const QUERIES: [(Point, Point, bool, &str); 5] = [
 #[entry]
 fn main() -> ! {
     hprintln!("echoloc {} on mps2-an386: depot map", env!("CARGO_PKG_VERSION"));
-    let map = MAP.take();
-    if let Err(e) = map.load(BLOB) {
-        hprintln!("FAIL: depot blob refused: {:?}", e);
-        exit(false);
-    }
+    let map = match MapView::new(&BLOB.0) {
+        Ok(v) => v,
+        Err(e) => {
+            hprintln!("FAIL: depot blob refused: {:?}", e);
+            exit(false);
+        }
+    };
     let (cell, cols, rows) = map.grid_dims();
     let b = map.bounds();
     hprintln!(
         "map: {} bytes, {} obstacles, {} convex pieces, {} true vertices ({} with buffers), t_b {} mm, grid {}x{} of {} mm, {} refs",
-        BLOB.len(),
-        map.obstacles().len(),
+        BLOB.0.len(),
+        map.obstacle_count(),
         map.piece_count(),
         map.true_vertex_count(),
         map.vertex_count(),
