@@ -3,36 +3,31 @@
 //! the Cyrus–Beck clipping that both a piece's entry point
 //! (`Convex::entry`) and a window's edge clipping (`Sector`) use.
 
-/// An exact fraction `num / den`, `den > 0`.
+/// An exact fraction `num / den`, `den > 0`, of two `i64` (the clipping
+/// constraints' own coefficients: no wider type is ever needed to hold one).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) struct Frac {
-    pub num: i128,
-    pub den: i128,
+    pub num: i64,
+    pub den: i64,
 }
 
 impl Frac {
     pub const ZERO: Frac = Frac { num: 0, den: 1 };
     pub const ONE: Frac = Frac { num: 1, den: 1 };
 
-    /// `self < o`, exactly (both denominators positive).
+    /// `self < o`, exactly (both denominators positive). Cross products in
+    /// `i64` when every term fits 32 bits (one multiply each on a
+    /// Cortex-M4, where `i128` products are library calls), else in `i128`.
+    #[inline]
     pub fn lt(self, o: Frac) -> bool {
-        // Every term below 2³¹: the products fit i64 (one multiply each on a
-        // Cortex-M4, where i128 products are library calls). Same answer.
-        const LIM: i128 = 1 << 31;
-        let small = |v: i128| -LIM < v && v < LIM;
+        let small = |v: i64| v as i32 as i64 == v;
         if small(self.num) && small(self.den) && small(o.num) && small(o.den) {
-            return (self.num as i64) * (o.den as i64) < (o.num as i64) * (self.den as i64);
+            return self.num * o.den < o.num * self.den;
         }
-        self.num * o.den < o.num * self.den
+        (self.num as i128) * (o.den as i128) < (o.num as i128) * (self.den as i128)
     }
 
     pub fn to_f64(self) -> f64 {
-        // Through i64 when both fit 53 bits: the same value, without the
-        // i128 conversion routine.
-        const LIM: i128 = 1 << 53;
-        if -LIM < self.num && self.num < LIM && self.den < LIM {
-            return self.num as i64 as f64 / self.den as i64 as f64;
-        }
         self.num as f64 / self.den as f64
     }
 }
@@ -51,20 +46,19 @@ impl ParamRange {
     /// Cuts the range by `c0 + s·c1 ≥ 0`; `false` once it is empty.
     /// Exact while `|c0|, |c1| < 2⁶³` (every product below 2¹²⁶).
     pub fn cut(&mut self, c0: i64, c1: i64) -> bool {
-        let (c0, c1) = (c0 as i128, c1 as i128);
         if c1 == 0 {
             if c0 < 0 {
                 self.hi = Frac { num: -1, den: 1 }; // empty for good
             }
         } else if c1 > 0 {
             // s ≥ −c0/c1
-            let f = Frac { num: -c0, den: c1 };
+            let f = Frac { num: c0.saturating_neg(), den: c1 };
             if self.lo.lt(f) {
                 self.lo = f;
             }
         } else {
             // s ≤ c0/(−c1)
-            let f = Frac { num: c0, den: -c1 };
+            let f = Frac { num: c0, den: c1.saturating_neg() };
             if f.lt(self.hi) {
                 self.hi = f;
             }

@@ -163,20 +163,25 @@ impl GridRef<'_> {
             return stats;
         }
         let (x0, y0, x1, y1) = self.cell_range(area);
+        let cell = self.cell_mm as i64;
         for y in y0..=y1 {
+            let y_start = self.origin.y as i64 + y as i64 * cell;
             for x in x0..=x1 {
+                let x_start = self.origin.x as i64 + x as i64 * cell;
                 stats.cells += 1;
                 for &id in self.cell(y as usize * self.cols as usize + x as usize) {
                     let b = bbox(id);
                     if !b.overlaps(&area) {
                         continue;
                     }
-                    let corner = Point::new(b.min.x.max(area.min.x), b.min.y.max(area.min.y));
-                    let home = (
-                        self.cell_of(corner.x, self.origin.x, self.cols),
-                        self.cell_of(corner.y, self.origin.y, self.rows),
-                    );
-                    if home == (x, y) {
+                    // Reported from its home cell only: the cell of the lower-left
+                    // corner of (its box ∩ the area). A piece listed in this cell has
+                    // its box's lower-left cell at or before it, so this is the home
+                    // column when it is the area's first or the box starts in it
+                    // (comparisons, where the cell number would cost a division).
+                    let home_x = x == x0 || b.min.x as i64 >= x_start;
+                    let home_y = y == y0 || b.min.y as i64 >= y_start;
+                    if home_x && home_y {
                         stats.candidates += 1;
                         f(id);
                     }

@@ -180,12 +180,14 @@ impl Convex<'_> {
         }
         // Reduce to i64: lo ∈ [0, 1] with its denominator |c1| < 2^63.
         let (lo_n, lo_d) = (r.lo.num, r.lo.den);
-        let g = gcd(lo_n.unsigned_abs(), lo_d.unsigned_abs()).max(1) as i128;
-        Some(Entry { num: (lo_n / g) as i64, den: (lo_d / g) as i64 })
+        let g = gcd(lo_n.unsigned_abs(), lo_d.unsigned_abs()).max(1);
+        // g divides both, so each quotient's magnitude fits i64.
+        let q = |v: i64| (v.unsigned_abs() / g) as i64 * v.signum();
+        Some(Entry { num: q(lo_n), den: q(lo_d) })
     }
 }
 
-fn gcd(mut a: u128, mut b: u128) -> u128 {
+fn gcd(mut a: u64, mut b: u64) -> u64 {
     while b != 0 {
         (a, b) = (b, a % b);
     }

@@ -162,11 +162,11 @@ impl Sector {
         if let Some(o) = cmp_dist_filtered(ao, e, s, r) {
             return o;
         }
-        let x = ao.0 as i128 * s.den + s.num * e.0 as i128;
-        let y = ao.1 as i128 * s.den + s.num * e.1 as i128;
+        let x = ao.0 as i128 * s.den as i128 + s.num as i128 * e.0 as i128;
+        let y = ao.1 as i128 * s.den as i128 + s.num as i128 * e.1 as i128;
         let lhs = U256::square(x).add(U256::square(y));
         let r2 = (r as u128) * (r as u128);
-        let d2 = s.den.unsigned_abs() * s.den.unsigned_abs();
+        let d2 = s.den.unsigned_abs() as u128 * s.den.unsigned_abs() as u128;
         lhs.cmp(&U256::mul(r2, d2))
     }
 
@@ -197,7 +197,7 @@ impl Sector {
         if ee == 0 {
             return self.cmp_dist(a, e, c.lo, r).is_le();
         }
-        let foot = Frac { num: dot(oa, e) as i128, den: ee };
+        let foot = Frac { num: dot(oa, e), den: ee as i64 };
         let s = if foot.lt(c.lo) {
             c.lo
         } else if c.hi.lt(foot) {
@@ -413,16 +413,16 @@ mod tests {
             let big = if i % 3 == 0 { 20_000_000 } else { 20_000 };
             let a = p(next(big) as i32 - big as i32 / 2, next(big) as i32 - big as i32 / 2);
             let e = (next(big) as i64 - big as i64 / 2, next(big) as i64 - big as i64 / 2);
-            let den = next(1 << 30) as i128 + 1;
-            let frac = Frac { num: next(den as u64 + 1) as i128, den };
+            let den = next(1 << 30) as i64 + 1;
+            let frac = Frac { num: next(den as u64 + 1) as i64, den };
             let ao = a.sub(s.apex);
             // Half the radii at the point's own distance, rounded: near ties.
             let d = ((ao.0 as f64 + frac.to_f64() * e.0 as f64).hypot(ao.1 as f64 + frac.to_f64() * e.1 as f64)) as i64;
             let r = if i % 2 == 0 { (d + next(3) as i64 - 1).clamp(0, 99_999) as u32 } else { next(100_000) as u32 };
             let ao_exact = {
-                let x = ao.0 as i128 * frac.den + frac.num * e.0 as i128;
-                let y = ao.1 as i128 * frac.den + frac.num * e.1 as i128;
-                let d2 = frac.den.unsigned_abs() * frac.den.unsigned_abs();
+                let x = ao.0 as i128 * frac.den as i128 + frac.num as i128 * e.0 as i128;
+                let y = ao.1 as i128 * frac.den as i128 + frac.num as i128 * e.1 as i128;
+                let d2 = frac.den.unsigned_abs() as u128 * frac.den.unsigned_abs() as u128;
                 U256::square(x).add(U256::square(y)).cmp(&U256::mul(r as u128 * r as u128, d2))
             };
             match cmp_dist_filtered(ao, e, frac, r) {
