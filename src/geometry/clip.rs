@@ -27,6 +27,16 @@ impl Frac {
         (self.num as i128) * (o.den as i128) < (o.num as i128) * (self.den as i128)
     }
 
+    /// The value as `f32`: one FPU division of the two terms when both fit
+    /// 24 bits (exact conversions, so correctly rounded), else through `f64`.
+    pub fn to_f32(self) -> f32 {
+        let exact = |v: i64| -(1 << 24) <= v && v <= 1 << 24;
+        if exact(self.num) && exact(self.den) {
+            return self.num as i32 as f32 / self.den as i32 as f32;
+        }
+        self.to_f64() as f32
+    }
+
     pub fn to_f64(self) -> f64 {
         self.num as f64 / self.den as f64
     }

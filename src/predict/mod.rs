@@ -244,8 +244,9 @@ pub fn predict<M: MapSource + ?Sized, K: Credence + ?Sized>(
 /// distance from `o` to any point of the piece: the distance to its box.
 fn box_distance_lower_bound(o: Point, p: &Piece<'_>) -> f32 {
     let b = p.bbox;
-    let dx = (b.min.x as i64 - o.x as i64).max(o.x as i64 - b.max.x as i64).max(0) as f32;
-    let dy = (b.min.y as i64 - o.y as i64).max(o.y as i64 - b.max.y as i64).max(0) as f32;
+    // Clamped below 2²⁴ (far beyond any R_max): exact, and converted by the FPU.
+    let gap = |lo: i32, v: i32, hi: i32| (lo as i64 - v as i64).max(v as i64 - hi as i64).clamp(0, 1 << 24) as i32 as f32;
+    let (dx, dy) = (gap(b.min.x, o.x, b.max.x), gap(b.min.y, o.y, b.max.y));
     (crate::f32math::sqrt(dx * dx + dy * dy) * (1.0 - 1.0 / 1_048_576.0) - 1.0).max(0.0)
 }
 
@@ -309,6 +310,16 @@ struct EdgeCtx {
     edge: u8,
 }
 
+/// `a − b` as `f32`, rounded once: through `i32` (the FPU converts it) when
+/// the difference fits, else through `i64` (a library call on a Cortex-M4).
+#[inline]
+fn diff_f32(a: i32, b: i32) -> f32 {
+    match a.checked_sub(b) {
+        Some(d) => d as f32,
+        None => (a as i64 - b as i64) as f32,
+    }
+}
+
 /// The roots of `|ao + s·e|² = r²` as `(s1, s2)`, `s1 ≤ s2`, if any.
 fn roots(ao: (f32, f32), e: (f32, f32), r: f32) -> Option<(f32, f32)> {
     let ee = e.0 * e.0 + e.1 * e.1;
@@ -335,8 +346,8 @@ fn search_edge<M: MapSource + ?Sized, K: Credence + ?Sized>(
     best: &mut Option<(f32, Prediction)>,
     stats: &mut PredictStats,
 ) {
-    let ao = ((ctx.a.x as i64 - ctx.o.x as i64) as f32, (ctx.a.y as i64 - ctx.o.y as i64) as f32);
-    let e = ((ctx.b.x as i64 - ctx.a.x as i64) as f32, (ctx.b.y as i64 - ctx.a.y as i64) as f32);
+    let ao = (diff_f32(ctx.a.x, ctx.o.x), diff_f32(ctx.a.y, ctx.o.y));
+    let e = (diff_f32(ctx.b.x, ctx.a.x), diff_f32(ctx.b.y, ctx.a.y));
     let len = crate::f32math::sqrt(e.0 * e.0 + e.1 * e.1);
     if len == 0.0 {
         return;

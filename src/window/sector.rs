@@ -38,7 +38,8 @@ pub struct Sector {
 
 fn dir(angle: f32) -> (i64, i64) {
     let (s, c) = sin_cos(angle);
-    (libm::roundf(c * DIR_SCALE) as i64, libm::roundf(s * DIR_SCALE) as i64)
+    // |·| ≤ 2¹⁴: through i32, which the FPU converts.
+    (libm::roundf(c * DIR_SCALE) as i32 as i64, libm::roundf(s * DIR_SCALE) as i32 as i64)
 }
 
 impl Sector {
@@ -187,7 +188,7 @@ impl Sector {
         let e = b.sub(a);
         // The farther clipped end must reach R_min, the nearest point R_max.
         let far_ok = self.at_least(a, e, c.lo, self.r_min_mm) || self.at_least(a, e, c.hi, self.r_min_mm);
-        (far_ok && self.nearest_within(a, e, c, self.r_max_mm)).then(|| (c.lo.to_f64() as f32, c.hi.to_f64() as f32))
+        (far_ok && self.nearest_within(a, e, c, self.r_max_mm)).then(|| (c.lo.to_f32(), c.hi.to_f32()))
     }
 
     /// Whether the clipped edge's nearest point to the apex is within `r`.
