@@ -30,7 +30,7 @@ impl Frac {
     /// The value as `f32`: one FPU division of the two terms when both fit
     /// 24 bits (exact conversions, so correctly rounded), else through `f64`.
     pub fn to_f32(self) -> f32 {
-        let exact = |v: i64| -(1 << 24) <= v && v <= 1 << 24;
+        let exact = |v: i64| (-(1 << 24)..=1 << 24).contains(&v);
         if exact(self.num) && exact(self.den) {
             return self.num as i32 as f32 / self.den as i32 as f32;
         }

@@ -245,12 +245,15 @@ pub fn predict<M: MapSource + ?Sized, K: Credence + ?Sized>(
 fn box_distance_lower_bound(o: Point, p: &Piece<'_>) -> f32 {
     let b = p.bbox;
     // Clamped below 2²⁴ (far beyond any R_max): exact, and converted by the FPU.
-    let gap = |lo: i32, v: i32, hi: i32| (lo as i64 - v as i64).max(v as i64 - hi as i64).clamp(0, 1 << 24) as i32 as f32;
+    let gap =
+        |lo: i32, v: i32, hi: i32| (lo as i64 - v as i64).max(v as i64 - hi as i64).clamp(0, 1 << 24) as i32 as f32;
     let (dx, dy) = (gap(b.min.x, o.x, b.max.x), gap(b.min.y, o.y, b.max.y));
     (crate::f32math::sqrt(dx * dx + dy * dy) * (1.0 - 1.0 / 1_048_576.0) - 1.0).max(0.0)
 }
 
 /// [`predict`] without the nearest-first visit: every beacon in grid order.
+/// Never inlined: its beacon set takes stack only when it runs.
+#[inline(never)]
 fn predict_in_grid_order<M: MapSource + ?Sized, K: Credence + ?Sized>(
     map: &M,
     window: &Window,

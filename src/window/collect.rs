@@ -2,7 +2,9 @@
 
 use heapless::Vec;
 
-use super::{Sector, WindowError, WindowParams, MAX_PSEUDO_PATHS};
+#[cfg(doc)]
+use super::MAX_PSEUDO_PATHS;
+use super::{PathLayout, Sector, WindowError, WindowParams};
 use crate::geometry::Point;
 use crate::map::{MapError, MapSource, Piece};
 
@@ -50,13 +52,18 @@ impl core::ops::AddAssign for CollectStats {
     }
 }
 
-/// A window placed in the map: the sector and its pseudo-path end points.
+/// A window placed in the map: the sector and its pseudo-path layout.
+///
+/// The pseudo-paths' end points are computed when asked ([`Window::paths`])
+/// rather than stored: a window stays about 150 bytes on the stack instead
+/// of carrying room for [`MAX_PSEUDO_PATHS`] points (2 KiB) that the exact
+/// strategy never reads.
 #[derive(Clone, Debug)]
 pub struct Window {
     /// The annular sector.
     pub sector: Sector,
-    /// Pseudo-path end points in the map frame, mm.
-    pub paths: Vec<Point, MAX_PSEUDO_PATHS>,
+    /// The pseudo-path layout.
+    pub layout: PathLayout,
     /// The parameters it was placed with.
     pub params: WindowParams,
 }
@@ -68,14 +75,19 @@ impl Window {
         let sector =
             Sector::new(apex, heading_rad, params.half_angle_deg.to_radians(), params.r_min_mm, params.r_max_mm)?;
         let layout = params.layout()?;
-        let mut paths = Vec::new();
-        for k in 0..layout.n_pp {
-            // End points reach R_max / cos θ_o: refuse a window that would leave the coordinate range.
-            let g = sector.to_map(layout.endpoint_x(k), params.r_max_mm as f32).ok_or(WindowError::BadRange)?;
-            // n_pp ≤ MAX_PSEUDO_PATHS, checked by layout().
-            let _ = paths.push(g);
+        // End points reach R_max / cos θ_o: refuse a window that would leave
+        // the coordinate range. They lie on a line, so the two outermost
+        // decide for all of them.
+        for k in [0, layout.n_pp.saturating_sub(1)] {
+            sector.to_map(layout.endpoint_x(k), params.r_max_mm as f32).ok_or(WindowError::BadRange)?;
         }
-        Ok(Self { sector, paths, params: *params })
+        Ok(Self { sector, layout, params: *params })
+    }
+
+    /// The pseudo-paths' end points in the map frame, mm, in layout order.
+    pub fn paths(&self) -> impl Iterator<Item = Point> + '_ {
+        let r = self.params.r_max_mm as f32;
+        (0..self.layout.n_pp).filter_map(move |k| self.sector.to_map(self.layout.endpoint_x(k), r))
     }
 }
 
@@ -86,7 +98,7 @@ pub fn is_beacon(window: &Window, strategy: Strategy, p: &Piece<'_>, stats: &mut
         Strategy::PseudoPaths => {
             let shape = p.buffered;
             let to = shape.tvector(o);
-            for &g in &window.paths {
+            for g in window.paths() {
                 stats.path_tests += 1;
                 if shape.hits_segment_with(o, to, g, shape.tvector(g)) {
                     return true;
