@@ -31,9 +31,15 @@ impl Point {
     }
 
     /// `self - o` widened to `i64` (exact for in-range points).
+    ///
+    /// Two in-range coordinates differ by at most `2·COORD_MAX < 2³¹`, so the
+    /// difference is taken in `i32` and sign-extended: a compiler then knows
+    /// each product of two differences is a 32 × 32 → 64-bit multiply (one
+    /// `SMULL` on a Cortex-M4 instead of a full 64-bit product). Out-of-range
+    /// points break every predicate's precondition anyway.
     #[inline]
     pub const fn sub(self, o: Point) -> (i64, i64) {
-        (self.x as i64 - o.x as i64, self.y as i64 - o.y as i64)
+        (self.x.wrapping_sub(o.x) as i64, self.y.wrapping_sub(o.y) as i64)
     }
 
     /// Squared Euclidean distance, exact.
