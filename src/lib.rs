@@ -24,7 +24,8 @@
 //!
 //! Every geometric *decision* is exact integer arithmetic; there is no
 //! allocator and no float on these paths (the pose filter in [`referencing`]
-//! is `f32`, as DESIGN §3 allows).
+//! is `f32`, as DESIGN §3 allows). `unsafe` is denied but for one measured
+//! exception: the FPU's square root on hard-float ARM ([`f32math::sqrt`]).
 //!
 //! ```
 //! use echoloc::geometry::{Point, Segment};

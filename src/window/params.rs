@@ -120,7 +120,9 @@ impl WindowParams {
     }
 
     fn span_mm(&self) -> f32 {
-        2.0 * self.r_max_mm as f32 * libm::tanf(self.half_angle_deg.to_radians())
+        // tan as sin/cos in f32 (libm's tanf works in f64, in software on an M4F).
+        let (s, c) = crate::f32math::sin_cos(self.half_angle_deg.to_radians());
+        2.0 * self.r_max_mm as f32 * (s / c)
     }
 
     /// The pseudo-path layout, computed once: eq. (2), (4) and what (5)–(6) need.

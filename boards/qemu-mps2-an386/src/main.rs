@@ -166,6 +166,18 @@ fn main() -> ! {
         ok = false;
     }
 
+    // The FPU square root (echoloc::f32math::sqrt is VSQRT on this target):
+    // exact on perfect squares, correctly rounded on known roots.
+    let roots_ok = (1..=4096u32).all(|i| {
+        let x = black_box(i as f32);
+        echoloc::f32math::sqrt(x * x) == x
+    }) && echoloc::f32math::sqrt(black_box(2.0)).to_bits() == 0x3FB5_04F3
+        && echoloc::f32math::sqrt(black_box(-1.0)).is_nan();
+    if !roots_ok {
+        hprintln!("FAIL: the FPU square root");
+        ok = false;
+    }
+
     // --- The depot map: validation, then the budgets.
     let t0 = ticks(&syst);
     let depot = MapView::new(black_box(&DEPOT.0));
