@@ -205,6 +205,11 @@ pub fn predict<M: MapSource + ?Sized, K: Credence + ?Sized>(
     let r_max = sector.r_max_mm as f32;
     let q = map
         .for_each_candidate(sector.bbox(), |p| {
+            // Beside the cone: nothing of it in the window. (Worth it before the
+            // pseudo-path tests; the exact strategy's own clipping is cheaper.)
+            if params.strategy == Strategy::PseudoPaths && sector.box_outside_wedge(&p.bbox) {
+                return;
+            }
             let lb = box_distance_lower_bound(o, &p);
             if lb > r_max {
                 return; // nothing of it within R_max

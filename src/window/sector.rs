@@ -96,6 +96,21 @@ impl Sector {
         cross(self.right, v) >= 0 && cross(v, self.left) >= 0
     }
 
+    /// Whether the box lies wholly outside the wedge `|φ| ≤ θ_o` (strictly
+    /// beyond one of its two edges' lines): then nothing in it meets the
+    /// sector. Exact; a cheap filter before the per-edge tests.
+    #[inline]
+    pub fn box_outside_wedge(&self, b: &Rect) -> bool {
+        let corners = [b.min, Point::new(b.max.x, b.min.y), b.max, Point::new(b.min.x, b.max.y)];
+        let (mut right, mut left) = (true, true);
+        for c in corners {
+            let v = c.sub(self.apex);
+            right &= cross(self.right, v) < 0;
+            left &= cross(v, self.left) < 0;
+        }
+        right || left
+    }
+
     /// Exact: whether `p` lies in the closed annular sector.
     pub fn contains(&self, p: Point) -> bool {
         let v = p.sub(self.apex);
@@ -435,5 +450,29 @@ mod tests {
             }
         }
         assert!(decided > 150_000 && near > 100, "decided {decided}, left to the exact test {near}");
+    }
+
+    #[test]
+    fn a_box_outside_the_wedge_has_no_point_in_it() {
+        // Brute force: every integer point of a box the filter rejects lies
+        // outside the wedge; and boxes straddling the axis are never rejected.
+        let s = Sector::new(p(100, -200), 0.7, 0.26, 0, 5000).unwrap();
+        let mut rejected = 0;
+        for x0 in (-3000..3000).step_by(250) {
+            for y0 in (-3000..3000).step_by(250) {
+                let b = Rect { min: p(x0, y0), max: p(x0 + 140, y0 + 90) };
+                if s.box_outside_wedge(&b) {
+                    rejected += 1;
+                    for x in b.min.x..=b.max.x {
+                        for y in b.min.y..=b.max.y {
+                            assert!(!s.in_wedge(p(x, y).sub(s.apex)), "({x}, {y}) in a rejected box {b:?}");
+                        }
+                    }
+                }
+            }
+        }
+        assert!(rejected > 300, "only {rejected} boxes rejected");
+        let on_axis = Rect { min: p(1000, 600), max: p(1200, 900) };
+        assert!(!s.box_outside_wedge(&on_axis));
     }
 }
