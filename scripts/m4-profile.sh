@@ -3,7 +3,9 @@
 # under QEMU with its execution log (-d in_asm,exec,nochain), counts the
 # instructions of every executed block and attributes them to the symbol
 # that holds the block's address. Prints the top functions (self cost).
-# Usage: bash scripts/m4-profile.sh [TOP]
+# With LINES=1 it also attributes every instruction to its source line
+# (innermost inlined frame, by llvm-addr2line) and prints the top lines.
+# Usage: [LINES=1] bash scripts/m4-profile.sh [TOP]
 set -euo pipefail
 cd "$(dirname "$0")/.."
 target=thumbv7em-none-eabihf
@@ -17,9 +19,10 @@ timeout 300 qemu-system-arm -cpu cortex-m4 -machine mps2-an386 -nographic -monit
 host=$(rustc -vV | sed -n 's/^host: //p')
 nm="$(rustc --print sysroot)/lib/rustlib/$host/bin/llvm-nm"
 "$nm" -n -C --defined-only "$elf" | awk '$2 ~ /^[tTwW]$/' >"$log.sym"
-python3 - "$log" "$log.sym" "${1:-30}" <<'PY'
-import sys, re, bisect, collections
-log, symf, top = sys.argv[1], sys.argv[2], int(sys.argv[3])
+a2l=$(command -v addr2line || echo addr2line)  # binutils' reads the ARM ELF's DWARF
+python3 - "$log" "$log.sym" "${1:-30}" "${LINES:-0}" "$a2l" "$elf" <<'PY'
+import sys, re, bisect, collections, subprocess
+log, symf, top, lines, a2l, elf = sys.argv[1], sys.argv[2], int(sys.argv[3]), sys.argv[4] == "1", sys.argv[5], sys.argv[6]
 syms = []
 for line in open(symf):
     parts = line.split(None, 2)
@@ -28,6 +31,7 @@ for line in open(symf):
 syms.sort()
 addrs = [a for a, _ in syms]
 size = {}            # block start -> instructions
+pcs = {}             # block start -> its instruction addresses
 cur = None
 runs = collections.Counter()
 for line in open(log, errors="replace"):
@@ -37,10 +41,12 @@ for line in open(log, errors="replace"):
     m = re.match(r"0x([0-9a-f]{8}):\s", line)
     if m and cur is not None:
         size[cur] = size.get(cur, 0) + 1
+        pcs[cur].append(int(m.group(1), 16))
         continue
     if m and cur is None:
         cur = int(m.group(1), 16)
         size[cur] = 1
+        pcs[cur] = [cur]
         continue
     m = re.search(r"Trace \d+: 0x[0-9a-f]+ \[[0-9a-f]+/([0-9a-f]+)/", line)
     if m:
@@ -55,4 +61,18 @@ for pc, n in runs.items():
 print(f"{total} instructions executed")
 for name, k in by.most_common(top):
     print(f"{k:>10} {100.0 * k / total:5.1f}%  {name[:110]}")
+if lines:
+    per_pc = collections.Counter()
+    for pc, n in runs.items():
+        for a in pcs.get(pc, [pc]):
+            per_pc[a] += n
+    addrs_l = sorted(per_pc)
+    out = subprocess.run([a2l, "-e", elf], input="\n".join(hex(a) for a in addrs_l), capture_output=True, text=True).stdout.split("\n")
+    by_line = collections.Counter()
+    for a, loc in zip(addrs_l, out):
+        loc = re.sub(r".*/(src|library|registry/src/[^/]+)/", "", loc.strip())
+        by_line[loc] += per_pc[a]
+    print("\ntop source lines:")
+    for loc, k in by_line.most_common(top):
+        print(f"{k:>10} {100.0 * k / total:5.1f}%  {loc[:110]}")
 PY

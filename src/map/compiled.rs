@@ -398,16 +398,12 @@ impl MapSource for MapView<'_> {
         })
     }
 
-    fn for_each_candidate(&self, area: Rect, mut f: impl FnMut(Piece<'_>)) -> Result<QueryStats, MapError> {
+    fn for_each_candidate_box(&self, area: Rect, f: impl FnMut(u16, Rect)) -> Result<QueryStats, MapError> {
         let pieces = self.pieces;
         Ok(self.grid().query(
             area,
             |id| pieces.get(id as usize).map_or(Rect::around(Point::new(0, 0)), PieceRec::bbox),
-            |id| {
-                if let Some(p) = self.piece(id) {
-                    f(p)
-                }
-            },
+            f,
         ))
     }
 }

@@ -157,7 +157,7 @@ impl GridRef<'_> {
 
     /// Calls `f(id)` once for every indexed piece whose box (as given by
     /// `bbox`) overlaps `area`.
-    pub(super) fn query(&self, area: Rect, bbox: impl Fn(u16) -> Rect, mut f: impl FnMut(u16)) -> QueryStats {
+    pub(super) fn query(&self, area: Rect, bbox: impl Fn(u16) -> Rect, mut f: impl FnMut(u16, Rect)) -> QueryStats {
         let mut stats = QueryStats::default();
         if self.cols == 0 || self.rows == 0 {
             return stats;
@@ -183,7 +183,7 @@ impl GridRef<'_> {
                     let home_y = y == y0 || b.min.y as i64 >= y_start;
                     if home_x && home_y {
                         stats.candidates += 1;
-                        f(id);
+                        f(id, b);
                     }
                 }
             }

@@ -518,7 +518,7 @@ impl<const PIECES: usize, const VERTS: usize, const CELLS: usize, const REFS: us
         Map::piece(self, id)
     }
 
-    fn for_each_candidate(&self, area: Rect, mut f: impl FnMut(Piece<'_>)) -> Result<QueryStats, MapError> {
+    fn for_each_candidate_box(&self, area: Rect, f: impl FnMut(u16, Rect)) -> Result<QueryStats, MapError> {
         if !self.finished {
             return Err(MapError::NotFinished);
         }
@@ -526,11 +526,7 @@ impl<const PIECES: usize, const VERTS: usize, const CELLS: usize, const REFS: us
         Ok(self.grid.index().query(
             area,
             |id| pieces.get(id as usize).map_or(Rect::around(Point::new(0, 0)), |p| Rect::from(p.bbox)),
-            |id| {
-                if let Some(p) = Map::piece(self, id) {
-                    f(p)
-                }
-            },
+            f,
         ))
     }
 }

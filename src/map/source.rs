@@ -19,9 +19,21 @@ pub trait MapSource {
     fn piece_count(&self) -> usize;
     /// The piece with id `id`, if any.
     fn piece(&self, id: u16) -> Option<Piece<'_>>;
+    /// Calls `f(id, box)` once for each piece whose buffered bounding box
+    /// overlaps `area`, through the grid (never a scan of the whole map), in
+    /// grid order: the cheap form, for callers that filter on the box before
+    /// they need the piece.
+    fn for_each_candidate_box(&self, area: Rect, f: impl FnMut(u16, Rect)) -> Result<QueryStats, MapError>;
+
     /// Calls `f` once for each piece whose buffered bounding box overlaps
-    /// `area`, through the grid (never a scan of the whole map), in grid order.
-    fn for_each_candidate(&self, area: Rect, f: impl FnMut(Piece<'_>)) -> Result<QueryStats, MapError>;
+    /// `area`, as [`MapSource::for_each_candidate_box`] finds them.
+    fn for_each_candidate(&self, area: Rect, mut f: impl FnMut(Piece<'_>)) -> Result<QueryStats, MapError> {
+        self.for_each_candidate_box(area, |id, _| {
+            if let Some(p) = self.piece(id) {
+                f(p)
+            }
+        })
+    }
 
     /// Every obstacle, in id order.
     fn obstacles_iter(&self) -> impl Iterator<Item = Obstacle> + '_ {

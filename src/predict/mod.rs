@@ -45,7 +45,7 @@ pub use ring::{place_sensor, predict_mount, predict_ring, Mount, Pose, PIONEER16
 use heapless::Vec;
 
 use crate::credence::{Credence, EchoGeometry, Kappa};
-use crate::geometry::{Point, Segment};
+use crate::geometry::{Point, Rect, Segment};
 use crate::map::Piece;
 use crate::map::{Layer, MapSource};
 use crate::window::{
@@ -204,17 +204,17 @@ pub fn predict<M: MapSource + ?Sized, K: Credence + ?Sized>(
     let mut overflow = false;
     let r_max = sector.r_max_mm as f32;
     let q = map
-        .for_each_candidate(sector.bbox(), |p| {
+        .for_each_candidate_box(sector.bbox(), |id, bbox| {
             // Beside the cone: nothing of it in the window. (Worth it before the
             // pseudo-path tests; the exact strategy's own clipping is cheaper.)
-            if params.strategy == Strategy::PseudoPaths && sector.box_outside_wedge(&p.bbox) {
+            if params.strategy == Strategy::PseudoPaths && sector.box_outside_wedge(&bbox) {
                 return;
             }
-            let lb = box_distance_lower_bound(o, &p);
+            let lb = box_distance_lower_bound(o, &bbox);
             if lb > r_max {
                 return; // nothing of it within R_max
             }
-            if keys.push(((lb * 0.5) as u32) << 16 | p.id as u32).is_err() {
+            if keys.push(((lb * 0.5) as u32) << 16 | id as u32).is_err() {
                 overflow = true;
             }
         })
@@ -247,8 +247,7 @@ pub fn predict<M: MapSource + ?Sized, K: Credence + ?Sized>(
 
 /// A lower bound (mm, with a millimetre to spare for `f32` rounding) of the
 /// distance from `o` to any point of the piece: the distance to its box.
-fn box_distance_lower_bound(o: Point, p: &Piece<'_>) -> f32 {
-    let b = p.bbox;
+fn box_distance_lower_bound(o: Point, b: &Rect) -> f32 {
     // Clamped below 2²⁴ (far beyond any R_max): exact, and converted by the FPU.
     let gap =
         |lo: i32, v: i32, hi: i32| (lo as i64 - v as i64).max(v as i64 - hi as i64).clamp(0, 1 << 24) as i32 as f32;
