@@ -208,6 +208,7 @@ fn inputs(range_mm: u32, theta_mdeg: i32) -> (i32, i32) {
 
 /// σ(z) for a Q16.16 pre-activation, as Q0.16 in `0 ..= 2¹⁶` (step 3). The
 /// table arithmetic fits `u32`: a step's difference is below 2¹¹ and `f` below 2¹².
+#[inline(always)]
 fn sigmoid_q16(z: i64) -> i32 {
     let a = z.unsigned_abs().min(Z_CLAMP as u64) as u32;
     let i = (a >> STEP_SHIFT) as usize;
