@@ -203,8 +203,9 @@ pub fn predict<M: MapSource + ?Sized, K: Credence + ?Sized>(
     let mut keys: Vec<u32, MAX_BEACONS> = Vec::new();
     let mut overflow = false;
     let r_max = sector.r_max_mm as f32;
+    let area = sector.bbox();
     let q = map
-        .for_each_candidate_box(sector.bbox(), |id, bbox| {
+        .for_each_candidate_box(area, |id, bbox| {
             // Beside the cone: nothing of it in the window. (Worth it before the
             // pseudo-path tests; the exact strategy's own clipping is cheaper.)
             if params.strategy == Strategy::PseudoPaths && sector.box_outside_wedge(&bbox) {
@@ -220,7 +221,7 @@ pub fn predict<M: MapSource + ?Sized, K: Credence + ?Sized>(
         })
         .map_err(|e| PredictError::Collect(CollectError::Map(e)))?;
     if overflow {
-        return predict_in_grid_order(map, window, params, credence);
+        return predict_unpruned(map, window, params, credence);
     }
     let mut stats = PredictStats::default();
     stats.collect.cells = q.cells;
@@ -240,7 +241,10 @@ pub fn predict<M: MapSource + ?Sized, K: Credence + ?Sized>(
             continue;
         }
         stats.beacons += 1;
-        search_piece(map, window, &piece, params, credence, &mut best, &mut stats);
+        // The exact strategy's candidates are every piece in the window's box
+        // within R_max: they serve as the occlusion test's candidates too.
+        let occluders = (params.strategy == Strategy::Exact).then_some((&keys[..], area));
+        search_piece(map, window, &piece, params, credence, occluders, &mut best, &mut stats);
     }
     Ok((best.map(|(_, p)| p), stats))
 }
@@ -255,10 +259,13 @@ fn box_distance_lower_bound(o: Point, b: &Rect) -> f32 {
     (crate::f32math::sqrt(dx * dx + dy * dy) * (1.0 - 1.0 / 1_048_576.0) - 1.0).max(0.0)
 }
 
-/// [`predict`] without the nearest-first visit: every beacon in grid order.
-/// Never inlined: its beacon set takes stack only when it runs.
+/// [`predict`] without its shortcuts: every beacon in grid order, no early
+/// stop, occlusion through the grid. The same answer, slower: [`predict`]
+/// falls back to it for a window with more than [`MAX_BEACONS`] candidates,
+/// and tests and benchmarks compare the two. Never inlined: its beacon set
+/// takes stack only when it runs.
 #[inline(never)]
-fn predict_in_grid_order<M: MapSource + ?Sized, K: Credence + ?Sized>(
+pub fn predict_unpruned<M: MapSource + ?Sized, K: Credence + ?Sized>(
     map: &M,
     window: &Window,
     params: &PredictParams,
@@ -271,18 +278,22 @@ fn predict_in_grid_order<M: MapSource + ?Sized, K: Credence + ?Sized>(
     let mut best: Option<(f32, Prediction)> = None;
     for &id in &beacons {
         let Some(piece) = map.piece(id) else { continue };
-        search_piece(map, window, &piece, params, credence, &mut best, &mut stats);
+        search_piece(map, window, &piece, params, credence, None, &mut best, &mut stats);
     }
     Ok((best.map(|(_, p)| p), stats))
 }
 
 /// Searches every front edge of one beacon that meets the window.
+/// `occluders`: the window's candidate keys, sorted, and the box they were
+/// found in (see [`occluded`]).
+#[allow(clippy::too_many_arguments)]
 fn search_piece<M: MapSource + ?Sized, K: Credence + ?Sized>(
     map: &M,
     window: &Window,
     piece: &Piece<'_>,
     params: &PredictParams,
     credence: &K,
+    occluders: Option<(&[u32], Rect)>,
     best: &mut Option<(f32, Prediction)>,
     stats: &mut PredictStats,
 ) {
@@ -302,12 +313,12 @@ fn search_piece<M: MapSource + ?Sized, K: Credence + ?Sized>(
         let (a, b) = shape.edge(edge);
         let Some((lo, hi)) = sector.edge_window(a, b) else { continue };
         stats.edges += 1;
-        let ctx = EdgeCtx { o, a, b, axis, piece: piece.id, obstacle: piece.obstacle, edge: edge as u8 };
+        let ctx = EdgeCtx { o, a, b, axis, piece: piece.id, obstacle: piece.obstacle, edge: edge as u8, occluders };
         search_edge(map, &ctx, lo, hi, sector.r_min_mm, sector.r_max_mm, params, credence, best, stats);
     }
 }
 
-struct EdgeCtx {
+struct EdgeCtx<'k> {
     o: Point,
     a: Point,
     b: Point,
@@ -315,6 +326,9 @@ struct EdgeCtx {
     piece: u16,
     obstacle: u16,
     edge: u8,
+    /// The window's candidate keys, sorted by box distance, and the box they
+    /// were found in, when known.
+    occluders: Option<(&'k [u32], Rect)>,
 }
 
 /// `a − b` as `f32`, rounded once: through `i32` (the FPU converts it) when
@@ -343,7 +357,7 @@ fn roots(ao: (f32, f32), e: (f32, f32), r: f32) -> Option<(f32, f32)> {
 #[allow(clippy::too_many_arguments)]
 fn search_edge<M: MapSource + ?Sized, K: Credence + ?Sized>(
     map: &M,
-    ctx: &EdgeCtx,
+    ctx: &EdgeCtx<'_>,
     lo: f32,
     hi: f32,
     r_min: u32,
@@ -458,9 +472,16 @@ fn search_edge<M: MapSource + ?Sized, K: Credence + ?Sized>(
 /// Test 4: does the ray from the transducer to the point `v` (relative to
 /// it) meet any other piece? The ray stops a millimetre short of the point,
 /// so a neighbour that only touches the echo point does not hide it.
+///
+/// With the window's sorted candidates at hand (every piece whose box meets
+/// the window's box, within `R_max`), and the ray inside that box, only the
+/// candidates whose box lies nearer than the point are tested: a piece the
+/// ray meets at `q` has `q` in its box, so its box meets the window's box,
+/// and its box is no farther than `q`. The answer is the grid query's,
+/// without walking the grid again.
 fn occluded<M: MapSource + ?Sized>(
     map: &M,
-    ctx: &EdgeCtx,
+    ctx: &EdgeCtx<'_>,
     v: (f32, f32),
     range: f32,
     stats: &mut PredictStats,
@@ -468,8 +489,27 @@ fn occluded<M: MapSource + ?Sized>(
     stats.occlusion_tests += 1;
     let k = ((range - 1.0) / range).max(0.0);
     let end = Point::new(ctx.o.x + libm::roundf(v.0 * k) as i32, ctx.o.y + libm::roundf(v.1 * k) as i32);
+    let seg = Segment::new(ctx.o, end);
+    let reach = seg.bbox();
+    if let Some((keys, _)) = ctx.occluders.filter(|(_, area)| area.contains(reach.min) && area.contains(reach.max)) {
+        for &key in keys {
+            if ((key >> 16) * 2) as f32 > range + 1.0 {
+                break; // this box and every later one lie beyond the point
+            }
+            let id = key as u16;
+            if id == ctx.piece {
+                continue;
+            }
+            if let Some(p) = map.piece(id) {
+                if p.bbox.overlaps(&reach) && p.shape.hits_segment(seg.a, seg.b) {
+                    return true;
+                }
+            }
+        }
+        return false;
+    }
     let mut hidden = false;
-    let _ = map.for_each_hit(Segment::new(ctx.o, end), Layer::True, |p| {
+    let _ = map.for_each_hit(seg, Layer::True, |p| {
         if p.id != ctx.piece {
             hidden = true;
         }

@@ -2,14 +2,17 @@
 //! host's [`Map`] rebuilt from the same true outlines (its own buffers, grid
 //! and seams): every ring prediction with the quantised net by both
 //! beacon-collection strategies, every geometric nearest point, every first
-//! hit, bit for bit, over thousands of random poses on the three real maps.
+//! hit, bit for bit, over thousands of random poses on the three real maps;
+//! and the predictor's shortcuts answer as its plain search does.
 
 use std::path::Path;
 
 use echoloc::credence::net::CredenceNet;
 use echoloc::geometry::{Point, Segment};
 use echoloc::map::{Layer, MapSource, MapView, StandardMap};
-use echoloc::predict::{nearest_in_window, predict_ring, Pose, PredictParams, PIONEER16};
+use echoloc::predict::{
+    nearest_in_window, place_sensor, predict, predict_ring, predict_unpruned, Pose, PredictParams, PIONEER16,
+};
 use echoloc::window::{Strategy, Window, WindowParams};
 
 use super::{build_map, read_shapes, AlignedBytes};
@@ -50,6 +53,16 @@ fn check(source: &str, poses: usize, seed: u64) {
             assert_eq!(sa, sv, "{source}: stats at {pose:?} ({strategy:?})");
             assert_eq!(a, v, "{source}: predictions at {pose:?} ({strategy:?})");
             predicted += a.iter().flatten().count();
+        }
+        // The predictor's shortcuts (nearest-first visit, early stop, occlusion
+        // among the window's candidates) against the plain search.
+        let params = PredictParams::new(window);
+        for (k, mount) in PIONEER16.iter().enumerate() {
+            let (apex, heading) = place_sensor(&pose, mount);
+            let w = Window::place(&window, apex, heading).expect("window places");
+            let fast = predict(&view, &w, &params, &net).expect("predicts").0;
+            let plain = predict_unpruned(&view, &w, &params, &net).expect("predicts").0;
+            assert_eq!(fast, plain, "{source}: transducer {k} at {pose:?}");
         }
         let apex = Point::new(pose.x_mm as i32, pose.y_mm as i32);
         let w = Window::place(&window, apex, pose.heading_rad).expect("window places");
