@@ -198,11 +198,15 @@ pub fn predict<M: MapSource + ?Sized, K: Credence + ?Sized>(
 ) -> Result<(Option<Prediction>, PredictStats), PredictError> {
     let sector = &window.sector;
     let o = sector.apex;
-    // Candidates as `(box distance / 2 mm) << 16 | id`: sorting the keys
-    // sorts by a lower bound of the distance, then by id.
+    // Candidates as `(d² >> shift) << 16 | id`, d² the exact squared distance
+    // to the piece's box, `shift` such that R_max² fits 16 bits: sorting the
+    // keys sorts by a lower bound of the distance, then by id; and
+    // `(key >> 16) · 2^shift` is a lower bound of d².
     let mut keys: Vec<u32, MAX_BEACONS> = Vec::new();
     let mut overflow = false;
-    let r_max = sector.r_max_mm as f32;
+    let r2_max = sector.r_max_mm as u64 * sector.r_max_mm as u64;
+    let shift = (u64::BITS - r2_max.leading_zeros()).saturating_sub(16);
+    let scale = (1u64 << shift) as f32;
     let area = sector.bbox();
     let q = map
         .for_each_candidate_box(area, |id, bbox| {
@@ -211,11 +215,11 @@ pub fn predict<M: MapSource + ?Sized, K: Credence + ?Sized>(
             if params.strategy == Strategy::PseudoPaths && sector.box_outside_wedge(&bbox) {
                 return;
             }
-            let lb = box_distance_lower_bound(o, &bbox);
-            if lb > r_max {
+            let d2 = box_distance2(o, &bbox);
+            if d2 > r2_max {
                 return; // nothing of it within R_max
             }
-            if keys.push(((lb * 0.5) as u32) << 16 | id as u32).is_err() {
+            if keys.push(((d2 >> shift) as u32) << 16 | id as u32).is_err() {
                 overflow = true;
             }
         })
@@ -229,8 +233,8 @@ pub fn predict<M: MapSource + ?Sized, K: Credence + ?Sized>(
     keys.sort_unstable();
     let mut best: Option<(f32, Prediction)> = None;
     for &key in keys.iter() {
-        let lb = (key >> 16) as f32 * 2.0;
-        if best.is_some_and(|(r, _)| lb > r + 1.0) {
+        let lb2 = (key >> 16) as f32 * scale;
+        if best.is_some_and(|(r, _)| lb2 > (r + 1.0) * (r + 1.0)) {
             break; // this box and every later one lie beyond the best echo
         }
         let Some(piece) = map.piece(key as u16) else { continue };
@@ -243,20 +247,19 @@ pub fn predict<M: MapSource + ?Sized, K: Credence + ?Sized>(
         stats.beacons += 1;
         // The exact strategy's candidates are every piece in the window's box
         // within R_max: they serve as the occlusion test's candidates too.
-        let occluders = (params.strategy == Strategy::Exact).then_some((&keys[..], area));
+        let occluders = (params.strategy == Strategy::Exact).then_some((&keys[..], area, scale));
         search_piece(map, window, &piece, params, credence, occluders, &mut best, &mut stats);
     }
     Ok((best.map(|(_, p)| p), stats))
 }
 
-/// A lower bound (mm, with a millimetre to spare for `f32` rounding) of the
-/// distance from `o` to any point of the piece: the distance to its box.
-fn box_distance_lower_bound(o: Point, b: &Rect) -> f32 {
-    // Clamped below 2²⁴ (far beyond any R_max): exact, and converted by the FPU.
-    let gap =
-        |lo: i32, v: i32, hi: i32| (lo as i64 - v as i64).max(v as i64 - hi as i64).clamp(0, 1 << 24) as i32 as f32;
+/// The squared distance (mm²) from `o` to the box, exact, with each gap
+/// clamped at 2²⁴ mm (far beyond any `R_max`): a lower bound of the squared
+/// distance to any point of the piece it holds.
+fn box_distance2(o: Point, b: &Rect) -> u64 {
+    let gap = |lo: i32, v: i32, hi: i32| (lo as i64 - v as i64).max(v as i64 - hi as i64).clamp(0, 1 << 24) as u64;
     let (dx, dy) = (gap(b.min.x, o.x, b.max.x), gap(b.min.y, o.y, b.max.y));
-    (crate::f32math::sqrt(dx * dx + dy * dy) * (1.0 - 1.0 / 1_048_576.0) - 1.0).max(0.0)
+    dx * dx + dy * dy
 }
 
 /// [`predict`] without its shortcuts: every beacon in grid order, no early
@@ -284,8 +287,8 @@ pub fn predict_unpruned<M: MapSource + ?Sized, K: Credence + ?Sized>(
 }
 
 /// Searches every front edge of one beacon that meets the window.
-/// `occluders`: the window's candidate keys, sorted, and the box they were
-/// found in (see [`occluded`]).
+/// `occluders`: the window's candidate keys, sorted, the box they were
+/// found in and their distance scale (see [`occluded`]).
 #[allow(clippy::too_many_arguments)]
 fn search_piece<M: MapSource + ?Sized, K: Credence + ?Sized>(
     map: &M,
@@ -293,7 +296,7 @@ fn search_piece<M: MapSource + ?Sized, K: Credence + ?Sized>(
     piece: &Piece<'_>,
     params: &PredictParams,
     credence: &K,
-    occluders: Option<(&[u32], Rect)>,
+    occluders: Option<(&[u32], Rect, f32)>,
     best: &mut Option<(f32, Prediction)>,
     stats: &mut PredictStats,
 ) {
@@ -326,9 +329,9 @@ struct EdgeCtx<'k> {
     piece: u16,
     obstacle: u16,
     edge: u8,
-    /// The window's candidate keys, sorted by box distance, and the box they
-    /// were found in, when known.
-    occluders: Option<(&'k [u32], Rect)>,
+    /// The window's candidate keys, sorted by box distance, the box they
+    /// were found in and their distance scale, when known.
+    occluders: Option<(&'k [u32], Rect, f32)>,
 }
 
 /// `a − b` as `f32`, rounded once: through `i32` (the FPU converts it) when
@@ -491,9 +494,12 @@ fn occluded<M: MapSource + ?Sized>(
     let end = Point::new(ctx.o.x + libm::roundf(v.0 * k) as i32, ctx.o.y + libm::roundf(v.1 * k) as i32);
     let seg = Segment::new(ctx.o, end);
     let reach = seg.bbox();
-    if let Some((keys, _)) = ctx.occluders.filter(|(_, area)| area.contains(reach.min) && area.contains(reach.max)) {
+    if let Some((keys, _, scale)) =
+        ctx.occluders.filter(|(_, area, _)| area.contains(reach.min) && area.contains(reach.max))
+    {
+        let reach2 = (range + 1.0) * (range + 1.0);
         for &key in keys {
-            if ((key >> 16) * 2) as f32 > range + 1.0 {
+            if (key >> 16) as f32 * scale > reach2 {
                 break; // this box and every later one lie beyond the point
             }
             let id = key as u16;
