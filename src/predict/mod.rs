@@ -334,6 +334,27 @@ struct EdgeCtx<'k> {
     occluders: Option<(&'k [u32], Rect, f32)>,
 }
 
+/// The larger of two numbers that are not NaN (`f32::max` is a library call
+/// on a Cortex-M4, for its NaN rule).
+#[inline(always)]
+fn fmax(a: f32, b: f32) -> f32 {
+    if a > b {
+        a
+    } else {
+        b
+    }
+}
+
+/// The smaller of two numbers that are not NaN.
+#[inline(always)]
+fn fmin(a: f32, b: f32) -> f32 {
+    if a < b {
+        a
+    } else {
+        b
+    }
+}
+
 /// `a − b` as `f32`, rounded once: through `i32` (the FPU converts it) when
 /// the difference fits, else through `i64` (a library call on a Cortex-M4).
 #[inline]
@@ -380,19 +401,19 @@ fn search_edge<M: MapSource + ?Sized, K: Credence + ?Sized>(
     let delta_max_mdeg = libm::roundf(params.window.delta_max_deg * 1000.0) as i32;
     // The window's ranges cut [lo, hi] into at most two intervals.
     let Some((q1, q2)) = roots(ao, e, r_max as f32) else { return };
-    let (lo, hi) = (lo.max(q1), hi.min(q2));
+    let (lo, hi) = (fmax(lo, q1), fmin(hi, q2));
     let whole = lo <= 0.0 && hi >= 1.0;
     let mut parts = [(lo, hi), (1.0, 0.0)];
     if r_min > 0 {
         if let Some((p1, p2)) = roots(ao, e, r_min as f32) {
-            parts = [(lo, hi.min(p1)), (lo.max(p2), hi)];
+            parts = [(lo, fmin(hi, p1)), (fmax(lo, p2), hi)];
         }
     }
     for (x, y) in parts {
         if x > y {
             continue;
         }
-        let ds = (params.step_mm.max(1) as f32 / len).max((y - x) / MAX_SUBSURFACE_STEPS as f32);
+        let ds = fmax(params.step_mm.max(1) as f32 / len, (y - x) / MAX_SUBSURFACE_STEPS as f32);
         // Walk away from the point nearest the transducer: towards y from it
         // (itself included), then towards x when the foot lies inside.
         let near = foot.clamp(x, y);
@@ -402,7 +423,7 @@ fn search_edge<M: MapSource + ?Sized, K: Credence + ?Sized>(
             }
             let mut s = near;
             if !include_start {
-                s = (s - ds).max(end);
+                s = fmax(s - ds, end);
             }
             // A hard bound too: f32 steps on a very long edge could stall.
             let mut steps = 0;
@@ -417,18 +438,20 @@ fn search_edge<M: MapSource + ?Sized, K: Credence + ?Sized>(
                 if best.is_some_and(|(r, p)| range > r || (range == r && ctx.piece >= p.piece)) {
                     break;
                 }
-                let theta = libm::atan2f(ctx.axis.0 * v.1 - ctx.axis.1 * v.0, ctx.axis.0 * v.0 + ctx.axis.1 * v.1);
                 let delta = libm::atan2f((e.0 * v.0 + e.1 * v.1).abs(), (e.0 * v.1 - e.1 * v.0).abs());
+                let delta_mdeg = libm::roundf(delta.to_degrees() * 1000.0) as i32;
+                // Test 2: δ grows with distance from the foot (Proposition 2),
+                // so past δ_max nothing farther along this way can echo. (Before
+                // θ: a step that fails it needs no second arctangent.)
+                if delta_mdeg > delta_max_mdeg {
+                    break;
+                }
+                let theta = libm::atan2f(ctx.axis.0 * v.1 - ctx.axis.1 * v.0, ctx.axis.0 * v.0 + ctx.axis.1 * v.1);
                 let echo = EchoGeometry {
                     range_mm: libm::roundf(range) as u32,
                     theta_mdeg: libm::roundf(theta.to_degrees() * 1000.0) as i32,
-                    delta_mdeg: libm::roundf(delta.to_degrees() * 1000.0) as i32,
+                    delta_mdeg,
                 };
-                // Test 2: δ grows with distance from the foot (Proposition 2),
-                // so past δ_max nothing farther along this way can echo.
-                if echo.delta_mdeg > delta_max_mdeg {
-                    break;
-                }
                 stats.kappa_evals += 1;
                 let kappa = credence.kappa(&echo);
                 if kappa >= params.tau_kappa && !occluded(map, ctx, v, range, stats) {
@@ -490,7 +513,7 @@ fn occluded<M: MapSource + ?Sized>(
     stats: &mut PredictStats,
 ) -> bool {
     stats.occlusion_tests += 1;
-    let k = ((range - 1.0) / range).max(0.0);
+    let k = fmax((range - 1.0) / range, 0.0);
     let end = Point::new(ctx.o.x + libm::roundf(v.0 * k) as i32, ctx.o.y + libm::roundf(v.1 * k) as i32);
     let seg = Segment::new(ctx.o, end);
     let reach = seg.bbox();
