@@ -71,6 +71,9 @@ for bin in depot kappa_cost ekf_cost; do
   }
 done
 
+step "big maps (issue #11 item 5): the depot tiled 1x1, 3x2 and 4x4, imported and run from a flash partition"
+bash scripts/big-maps.sh
+
 step "docs"
 RUSTDOCFLAGS="-D warnings" cargo doc -q --no-deps
 RUSTDOCFLAGS="-D warnings" cargo doc -q --no-deps -p qemu-mps2-an386 -p stm32f4-sonar --target thumbv7em-none-eabihf
