@@ -111,12 +111,13 @@ pub struct MapView<'a> {
 
 /// The byte sizes of the sections after the counts, from the counts.
 fn section_sizes(c: &Counts) -> Option<[u64; 5]> {
+    // Every count is u32: each product but the cells' fits u64 unchecked.
     let cells = (c.cols as u64).checked_mul(c.rows as u64)?;
     Some([
         8 * c.obstacles as u64,
         32 * c.pieces as u64,
         8 * c.vertices as u64,
-        4 * (cells + 1),
+        cells.checked_add(1)?.checked_mul(4)?,
         (2 * c.refs as u64).next_multiple_of(4),
     ])
 }
