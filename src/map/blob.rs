@@ -177,6 +177,48 @@ pub enum EncodeError {
     NotFinished,
 }
 
+/// The header's checks, shared by both versions (length, magic, `version`,
+/// reserved flags, payload length, CRC); the payload on success.
+pub(super) fn check_header(blob: &[u8], version: u16) -> Result<&[u8], BlobError> {
+    if blob.len() < BLOB_HEADER_LEN {
+        return Err(BlobError::TooShort { len: blob.len() });
+    }
+    let mut h = Reader { data: blob, pos: 0 };
+    if h.take::<4>()? != BLOB_MAGIC {
+        return Err(BlobError::BadMagic);
+    }
+    let found = h.u16()?;
+    if found != version {
+        return Err(BlobError::UnsupportedVersion(found));
+    }
+    let flags = h.u16()?;
+    if flags != 0 {
+        return Err(BlobError::ReservedFlags(flags));
+    }
+    let payload_len = h.u32()?;
+    let stored = h.u32()?;
+    let payload = blob.get(BLOB_HEADER_LEN..).unwrap_or(&[]);
+    if payload_len as usize != payload.len() {
+        return Err(BlobError::LengthMismatch { header: payload_len, actual: payload.len() });
+    }
+    let computed = super::crc32(payload);
+    if computed != stored {
+        return Err(BlobError::BadCrc { stored, computed });
+    }
+    Ok(payload)
+}
+
+/// Writes the header for `payload_len` bytes of payload with CRC `crc`.
+pub(super) fn write_header(out: &mut [u8], version: u16, payload_len: usize, crc: u32) {
+    if let Some(h) = out.get_mut(..BLOB_HEADER_LEN) {
+        h[0..4].copy_from_slice(&BLOB_MAGIC);
+        h[4..6].copy_from_slice(&version.to_le_bytes());
+        h[6..8].copy_from_slice(&0u16.to_le_bytes());
+        h[8..12].copy_from_slice(&(payload_len as u32).to_le_bytes());
+        h[12..16].copy_from_slice(&crc.to_le_bytes());
+    }
+}
+
 struct Reader<'a> {
     data: &'a [u8],
     pos: usize,
@@ -249,11 +291,7 @@ impl<const PIECES: usize, const VERTS: usize, const CELLS: usize, const REFS: us
             put(&v.y.to_le_bytes());
         }
         let crc = super::crc32(&out[BLOB_HEADER_LEN..]);
-        out[0..4].copy_from_slice(&BLOB_MAGIC);
-        out[4..6].copy_from_slice(&BLOB_VERSION.to_le_bytes());
-        out[6..8].copy_from_slice(&0u16.to_le_bytes());
-        out[8..12].copy_from_slice(&((need - BLOB_HEADER_LEN) as u32).to_le_bytes());
-        out[12..16].copy_from_slice(&crc.to_le_bytes());
+        write_header(out, BLOB_VERSION, need - BLOB_HEADER_LEN, crc);
         Ok(need)
     }
 
@@ -270,35 +308,11 @@ impl<const PIECES: usize, const VERTS: usize, const CELLS: usize, const REFS: us
     }
 
     fn load_inner(&mut self, blob: &[u8]) -> Result<(), BlobError> {
-        if blob.len() < BLOB_HEADER_LEN {
-            return Err(BlobError::TooShort { len: blob.len() });
-        }
-        let mut h = Reader { data: blob, pos: 0 };
-        if h.take::<4>()? != BLOB_MAGIC {
-            return Err(BlobError::BadMagic);
-        }
-        let version = h.u16()?;
-        if version == super::COMPILED_VERSION {
+        if blob.len() >= 6 && blob[4..6] == super::COMPILED_VERSION.to_le_bytes() {
             let view = super::MapView::new(blob)?;
             return self.load_view(&view);
         }
-        if version != BLOB_VERSION {
-            return Err(BlobError::UnsupportedVersion(version));
-        }
-        let flags = h.u16()?;
-        if flags != 0 {
-            return Err(BlobError::ReservedFlags(flags));
-        }
-        let payload_len = h.u32()?;
-        let stored = h.u32()?;
-        let payload = &blob[BLOB_HEADER_LEN..];
-        if payload_len as usize != payload.len() {
-            return Err(BlobError::LengthMismatch { header: payload_len, actual: payload.len() });
-        }
-        let computed = super::crc32(payload);
-        if computed != stored {
-            return Err(BlobError::BadCrc { stored, computed });
-        }
+        let payload = check_header(blob, BLOB_VERSION)?;
         // Counts, then every section's size checked before reading it.
         let mut r = Reader { data: blob, pos: BLOB_HEADER_LEN };
         let buffer_mm = r.u32()?;

@@ -36,7 +36,7 @@ use bytemuck::{Pod, Zeroable};
 
 use super::grid::GridRef;
 use super::source::{seams_of, MapSource};
-use super::{BlobError, Map, MapError, Obstacle, ObstacleKind, Piece, QueryStats, BLOB_HEADER_LEN, BLOB_MAGIC};
+use super::{BlobError, Map, MapError, Obstacle, ObstacleKind, Piece, QueryStats, BLOB_HEADER_LEN};
 use crate::buffer::grow;
 use crate::geometry::{Convex, Point, Rect, MAX_PIECE_VERTICES};
 
@@ -409,36 +409,12 @@ impl MapSource for MapView<'_> {
     }
 }
 
-/// The header's checks; the payload on success.
+/// The header's checks (after the alignment); the payload on success.
 fn check_header(blob: &[u8]) -> Result<&[u8], BlobError> {
     if blob.as_ptr() as usize % 4 != 0 {
         return Err(BlobError::Misaligned);
     }
-    if blob.len() < BLOB_HEADER_LEN {
-        return Err(BlobError::TooShort { len: blob.len() });
-    }
-    let word = |i: usize| u32::from_le_bytes([blob[i], blob[i + 1], blob[i + 2], blob[i + 3]]);
-    if blob[..4] != BLOB_MAGIC {
-        return Err(BlobError::BadMagic);
-    }
-    let version = u16::from_le_bytes([blob[4], blob[5]]);
-    if version != COMPILED_VERSION {
-        return Err(BlobError::UnsupportedVersion(version));
-    }
-    let flags = u16::from_le_bytes([blob[6], blob[7]]);
-    if flags != 0 {
-        return Err(BlobError::ReservedFlags(flags));
-    }
-    let (payload_len, stored) = (word(8), word(12));
-    let payload = &blob[BLOB_HEADER_LEN..];
-    if payload_len as usize != payload.len() {
-        return Err(BlobError::LengthMismatch { header: payload_len, actual: payload.len() });
-    }
-    let computed = super::crc32(payload);
-    if computed != stored {
-        return Err(BlobError::BadCrc { stored, computed });
-    }
-    Ok(payload)
+    super::blob::check_header(blob, COMPILED_VERSION)
 }
 
 impl<const PIECES: usize, const VERTS: usize, const CELLS: usize, const REFS: usize> Map<PIECES, VERTS, CELLS, REFS> {
@@ -520,11 +496,7 @@ impl<const PIECES: usize, const VERTS: usize, const CELLS: usize, const REFS: us
             put(&r.to_le_bytes());
         }
         let crc = super::crc32(&out[BLOB_HEADER_LEN..]);
-        out[0..4].copy_from_slice(&BLOB_MAGIC);
-        out[4..6].copy_from_slice(&COMPILED_VERSION.to_le_bytes());
-        out[6..8].copy_from_slice(&0u16.to_le_bytes());
-        out[8..12].copy_from_slice(&((need - BLOB_HEADER_LEN) as u32).to_le_bytes());
-        out[12..16].copy_from_slice(&crc.to_le_bytes());
+        super::blob::write_header(out, COMPILED_VERSION, need - BLOB_HEADER_LEN, crc);
         Ok(need)
     }
 

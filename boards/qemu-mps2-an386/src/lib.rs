@@ -149,3 +149,47 @@ pub fn flash_bytes() -> usize {
 pub fn metric(name: &str, value: u64) {
     hprintln!("metric {} {}", name, value);
 }
+
+/// Up to `N` poses spread through the map's free space by a fixed generator
+/// (xorshift32 from a fixed seed, so every run and every binary times the
+/// same poses): none inside a piece, none with a piece within 300 mm along
+/// either axis. Gives up after `max_tries` candidates (a map with no free
+/// space returns fewer).
+pub fn free_poses<const N: usize>(
+    map: &echoloc::map::MapView<'_>,
+    max_tries: u32,
+) -> heapless::Vec<echoloc::predict::Pose, N> {
+    use echoloc::geometry::{Point, Rect, Segment};
+    use echoloc::map::MapSource;
+    let mut out = heapless::Vec::new();
+    let Some(b) = map.bounds() else { return out };
+    let mut s = 0x2545_F491u32;
+    let mut next = move || {
+        s ^= s << 13;
+        s ^= s >> 17;
+        s ^= s << 5;
+        s
+    };
+    let mut tries = 0;
+    while !out.is_full() && tries < max_tries {
+        tries += 1;
+        let x = b.min.x + (next() % (b.max.x - b.min.x).max(1) as u32) as i32;
+        let y = b.min.y + (next() % (b.max.y - b.min.y).max(1) as u32) as i32;
+        let heading = (next() % 6283) as f32 / 1000.0 - core::f32::consts::PI;
+        let p = Point::new(x, y);
+        let mut free = true;
+        let _ = map.for_each_candidate(Rect::around(p), |piece| {
+            free &= !piece.shape.tvector(p).is_inside();
+        });
+        for seg in [
+            Segment::new(Point::new(x - 300, y), Point::new(x + 300, y)),
+            Segment::new(Point::new(x, y - 300), Point::new(x, y + 300)),
+        ] {
+            free &= matches!(map.first_hit(seg), Ok(None));
+        }
+        if free {
+            let _ = out.push(echoloc::predict::Pose { x_mm: x as f32, y_mm: y as f32, heading_rad: heading });
+        }
+    }
+    out
+}

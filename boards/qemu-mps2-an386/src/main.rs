@@ -32,8 +32,8 @@ use echoloc::predict::{predict_ring, Pose, PredictParams, Prediction, PIONEER16}
 use echoloc::referencing::{Ekf, EkfConfig, Motion, Reading, Referencer, VerdictConfig};
 use echoloc::window::{Strategy, WindowParams};
 use qemu_mps2_an386::{
-    calibrate, elapsed, exit, first_unpainted, flash_bytes, metric, paint_free_stack, stack_bounds, stack_high_water,
-    start_systick, static_ram_bytes, ticks,
+    calibrate, elapsed, exit, first_unpainted, flash_bytes, free_poses, metric, paint_free_stack, stack_bounds,
+    stack_high_water, start_systick, static_ram_bytes, ticks,
 };
 use static_cell::ConstStaticCell;
 
@@ -200,7 +200,7 @@ fn main() -> ! {
     metric("map_bytes_depot", DEPOT.0.len() as u64);
 
     let params = PredictParams::new(WindowParams { tb_mm: depot.buffer_mm(), ..WindowParams::MARGE });
-    let poses = free_poses(&depot);
+    let poses = free_poses::<{ POSES as usize }>(&depot, u32::MAX);
     let (mut total, mut worst, mut predicted) = (0u64, 0u64, 0u32);
     for pose in poses.iter() {
         let mut out = [None; 16];
@@ -245,41 +245,6 @@ fn main() -> ! {
     let (used, size) = stack_high_water();
     hprintln!("stack high-water mark: {} of {} bytes", used, size);
     exit(ok);
-}
-
-/// `POSES` poses spread through the depot's free space by a fixed
-/// generator: none inside a piece, none with a piece within 300 mm along
-/// either axis.
-fn free_poses(map: &MapView<'_>) -> heapless::Vec<Pose, { POSES as usize }> {
-    let mut out = heapless::Vec::new();
-    let Some(b) = map.bounds() else { return out };
-    let mut s = 0x2545_F491u32;
-    let mut next = move || {
-        s ^= s << 13;
-        s ^= s >> 17;
-        s ^= s << 5;
-        s
-    };
-    while !out.is_full() {
-        let x = b.min.x + (next() % (b.max.x - b.min.x) as u32) as i32;
-        let y = b.min.y + (next() % (b.max.y - b.min.y) as u32) as i32;
-        let heading = (next() % 6283) as f32 / 1000.0 - core::f32::consts::PI;
-        let p = Point::new(x, y);
-        let mut free = true;
-        let _ = map.for_each_candidate(echoloc::geometry::Rect::around(p), |piece| {
-            free &= !piece.shape.tvector(p).is_inside();
-        });
-        for seg in [
-            Segment::new(Point::new(x - 300, y), Point::new(x + 300, y)),
-            Segment::new(Point::new(x, y - 300), Point::new(x, y + 300)),
-        ] {
-            free &= matches!(map.first_hit(seg), Ok(None));
-        }
-        if free {
-            let _ = out.push(Pose { x_mm: x as f32, y_mm: y as f32, heading_rad: heading });
-        }
-    }
-    out
 }
 
 /// One whole ring cycle through the core's `Referencer`, never inlined so

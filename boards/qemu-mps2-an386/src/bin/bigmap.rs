@@ -37,11 +37,10 @@ use core::hint::black_box;
 use cortex_m_rt::entry;
 use cortex_m_semihosting::hprintln;
 use echoloc::credence::net::CredenceNet;
-use echoloc::geometry::{Point, Rect, Segment};
 use echoloc::map::{MapSource, MapView, BLOB_HEADER_LEN, BLOB_MAGIC};
-use echoloc::predict::{predict_ring, Pose, PredictParams, PIONEER16};
+use echoloc::predict::{predict_ring, PredictParams, PIONEER16};
 use echoloc::window::WindowParams;
-use qemu_mps2_an386::{calibrate, elapsed, exit, flash_bytes, metric, start_systick, ticks};
+use qemu_mps2_an386::{calibrate, elapsed, exit, flash_bytes, free_poses, metric, start_systick, ticks};
 
 /// Where the map partition starts: 4-byte aligned, past the 1 MiB image.
 const PARTITION_START: usize = 0x0020_0000;
@@ -99,7 +98,7 @@ fn main() -> ! {
 
     let net = CredenceNet::shipped();
     let params = PredictParams::new(WindowParams { tb_mm: map.buffer_mm(), ..WindowParams::MARGE });
-    let poses = free_poses(&map);
+    let poses = free_poses::<POSES>(&map, MAX_TRIES);
     if poses.len() < POSES {
         hprintln!("FAIL: only {} free poses found in {} tries", poses.len(), MAX_TRIES);
         exit(false);
@@ -161,41 +160,4 @@ fn partition_map() -> Option<&'static [u8]> {
     // described above: mapped, aligned, initialised, and never written while
     // the program runs, hence valid as an immutable `'static` slice.
     Some(unsafe { core::slice::from_raw_parts(PARTITION_START as *const u8, len) })
-}
-
-/// Up to `POSES` poses spread through the map's free space by the main
-/// firmware's fixed generator: none inside a piece, none with a piece within
-/// 300 mm along either axis. Gives up after `MAX_TRIES` candidates.
-fn free_poses(map: &MapView<'_>) -> heapless::Vec<Pose, POSES> {
-    let mut out = heapless::Vec::new();
-    let Some(b) = map.bounds() else { return out };
-    let mut s = 0x2545_F491u32;
-    let mut next = move || {
-        s ^= s << 13;
-        s ^= s >> 17;
-        s ^= s << 5;
-        s
-    };
-    let mut tries = 0;
-    while !out.is_full() && tries < MAX_TRIES {
-        tries += 1;
-        let x = b.min.x + (next() % (b.max.x - b.min.x).max(1) as u32) as i32;
-        let y = b.min.y + (next() % (b.max.y - b.min.y).max(1) as u32) as i32;
-        let heading = (next() % 6283) as f32 / 1000.0 - core::f32::consts::PI;
-        let p = Point::new(x, y);
-        let mut free = true;
-        let _ = map.for_each_candidate(Rect::around(p), |piece| {
-            free &= !piece.shape.tvector(p).is_inside();
-        });
-        for seg in [
-            Segment::new(Point::new(x - 300, y), Point::new(x + 300, y)),
-            Segment::new(Point::new(x, y - 300), Point::new(x, y + 300)),
-        ] {
-            free &= matches!(map.first_hit(seg), Ok(None));
-        }
-        if free {
-            let _ = out.push(Pose { x_mm: x as f32, y_mm: y as f32, heading_rad: heading });
-        }
-    }
-    out
 }
