@@ -193,3 +193,43 @@ pub fn free_poses<const N: usize>(
     }
     out
 }
+
+/// What [`time_rings`] measured.
+pub struct RingTimes {
+    /// Instructions over every ring.
+    pub total: u64,
+    /// Instructions of the costliest ring.
+    pub worst: u64,
+    /// Windows that predicted an echo.
+    pub predicted: usize,
+    /// Whether every prediction succeeded.
+    pub ok: bool,
+}
+
+/// Times a Pioneer ring prediction at each pose, in instructions (`per_tick`
+/// from [`calibrate`]).
+pub fn time_rings(
+    map: &echoloc::map::MapView<'_>,
+    poses: &[echoloc::predict::Pose],
+    params: &echoloc::predict::PredictParams,
+    net: &echoloc::credence::net::CredenceNet<'_>,
+    syst: &Option<SYST>,
+    per_tick: u32,
+) -> RingTimes {
+    use echoloc::predict::{predict_ring, PIONEER16};
+    let mut t = RingTimes { total: 0, worst: 0, predicted: 0, ok: true };
+    for pose in poses {
+        let mut out = [None; 16];
+        let t0 = ticks(syst);
+        let r = predict_ring(map, core::hint::black_box(pose), &PIONEER16, params, net, &mut out);
+        let n = (elapsed(t0, ticks(syst)) * per_tick) as u64;
+        if let Err(e) = r {
+            hprintln!("FAIL: ring at {:?}: {:?}", pose, e);
+            t.ok = false;
+        }
+        t.predicted += out.iter().flatten().count();
+        t.total += n;
+        t.worst = t.worst.max(n);
+    }
+    t
+}

@@ -33,7 +33,7 @@ use echoloc::referencing::{Ekf, EkfConfig, Motion, Reading, Referencer, VerdictC
 use echoloc::window::{Strategy, WindowParams};
 use qemu_mps2_an386::{
     calibrate, elapsed, exit, first_unpainted, flash_bytes, free_poses, metric, paint_free_stack, stack_bounds,
-    stack_high_water, start_systick, static_ram_bytes, ticks,
+    stack_high_water, start_systick, static_ram_bytes, ticks, time_rings, RingTimes,
 };
 use static_cell::ConstStaticCell;
 
@@ -201,23 +201,12 @@ fn main() -> ! {
 
     let params = PredictParams::new(WindowParams { tb_mm: depot.buffer_mm(), ..WindowParams::MARGE });
     let poses = free_poses::<{ POSES as usize }>(&depot, u32::MAX);
-    let (mut total, mut worst, mut predicted) = (0u64, 0u64, 0u32);
-    for pose in poses.iter() {
-        let mut out = [None; 16];
-        let t0 = ticks(&syst);
-        let r = predict_ring(&depot, black_box(pose), &PIONEER16, &params, &net, &mut out);
-        let t = (elapsed(t0, ticks(&syst)) * per_tick) as u64;
-        if let Err(e) = r {
-            hprintln!("FAIL: depot ring at {:?}: {:?}", pose, e);
-            ok = false;
-        }
-        predicted += out.iter().flatten().count() as u32;
-        total += t;
-        worst = worst.max(t);
-    }
+    let RingTimes { total, worst, predicted, ok: rings_ok } =
+        time_rings(&depot, &poses, &params, &net, &syst, per_tick);
+    ok &= rings_ok;
     let rings = poses.len().max(1) as u64;
     hprintln!("depot: {} rings at free poses, {} of {} windows predicted an echo", rings, predicted, rings * 16);
-    if predicted < POSES * 4 {
+    if predicted < POSES as usize * 4 {
         hprintln!("FAIL: too few predictions for the timing to mean anything");
         ok = false;
     }

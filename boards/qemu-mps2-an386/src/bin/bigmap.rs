@@ -38,9 +38,11 @@ use cortex_m_rt::entry;
 use cortex_m_semihosting::hprintln;
 use echoloc::credence::net::CredenceNet;
 use echoloc::map::{MapSource, MapView, BLOB_HEADER_LEN, BLOB_MAGIC};
-use echoloc::predict::{predict_ring, PredictParams, PIONEER16};
+use echoloc::predict::PredictParams;
 use echoloc::window::WindowParams;
-use qemu_mps2_an386::{calibrate, elapsed, exit, flash_bytes, free_poses, metric, start_systick, ticks};
+use qemu_mps2_an386::{
+    calibrate, elapsed, exit, flash_bytes, free_poses, metric, start_systick, ticks, time_rings, RingTimes,
+};
 
 /// Where the map partition starts: 4-byte aligned, past the 1 MiB image.
 const PARTITION_START: usize = 0x0020_0000;
@@ -103,21 +105,8 @@ fn main() -> ! {
         hprintln!("FAIL: only {} free poses found in {} tries", poses.len(), MAX_TRIES);
         exit(false);
     }
-    let mut ok = true;
-    let (mut total, mut worst, mut predicted) = (0u64, 0u64, 0usize);
-    for pose in poses.iter() {
-        let mut out = [None; 16];
-        let t0 = ticks(&syst);
-        let r = predict_ring(&map, black_box(pose), &PIONEER16, &params, &net, &mut out);
-        let t = (elapsed(t0, ticks(&syst)) * per_tick) as u64;
-        if let Err(e) = r {
-            hprintln!("FAIL: ring at {:?}: {:?}", pose, e);
-            ok = false;
-        }
-        predicted += out.iter().flatten().count();
-        total += t;
-        worst = worst.max(t);
-    }
+    let RingTimes { total, worst, predicted, ok: rings_ok } = time_rings(&map, &poses, &params, &net, &syst, per_tick);
+    let mut ok = rings_ok;
     let rings = poses.len() as u64;
     hprintln!("{} rings at free poses, {} of {} windows predicted an echo", rings, predicted, rings * 16);
     if predicted < POSES * 4 {
