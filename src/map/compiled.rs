@@ -80,20 +80,43 @@ struct ObstacleRec {
     reserved1: u16,
 }
 
+/// One piece's record: the same 32 bytes in the host's `Map` (in RAM) and
+/// in a compiled map (in flash).
 #[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
 #[repr(C)]
-struct PieceRec {
-    obstacle: u16,
-    true_len: u8,
-    buf_len: u8,
-    true_start: u32,
-    buf_start: u32,
-    seams: u32,
-    bbox: [i32; 4],
+pub(super) struct PieceRec {
+    pub(super) obstacle: u16,
+    pub(super) true_len: u8,
+    pub(super) buf_len: u8,
+    pub(super) true_start: u32,
+    pub(super) buf_start: u32,
+    /// Edges shared with another piece of the same obstacle (seams left by
+    /// convex splitting): bit `i` for edge `i`. Not surfaces: no echo.
+    pub(super) seams: u32,
+    /// Box of the buffered outline (the true one until the map is
+    /// finished): min x, min y, max x, max y.
+    pub(super) bbox: [i32; 4],
 }
 
 impl PieceRec {
-    fn bbox(&self) -> Rect {
+    pub(super) fn true_range(&self) -> core::ops::Range<usize> {
+        self.true_start as usize..self.true_start as usize + self.true_len as usize
+    }
+
+    pub(super) fn buf_range(&self) -> core::ops::Range<usize> {
+        self.buf_start as usize..self.buf_start as usize + self.buf_len as usize
+    }
+
+    /// The box of a piece's vertices (all zero for none).
+    pub(super) fn box_of(pts: &[Point]) -> [i32; 4] {
+        Rect::of_points(pts).map_or([0; 4], |r| [r.min.x, r.min.y, r.max.x, r.max.y])
+    }
+
+    pub(super) fn set_bbox(&mut self, pts: &[Point]) {
+        self.bbox = Self::box_of(pts);
+    }
+
+    pub(super) fn bbox(&self) -> Rect {
         Rect { min: Point::new(self.bbox[0], self.bbox[1]), max: Point::new(self.bbox[2], self.bbox[3]) }
     }
 }
@@ -473,17 +496,7 @@ impl<const PIECES: usize, const VERTS: usize, const CELLS: usize, const REFS: us
             put(bytemuck::bytes_of(&r));
         }
         for p in &self.pieces {
-            let b = p.bbox;
-            let r = PieceRec {
-                obstacle: p.obstacle,
-                true_len: p.true_len,
-                buf_len: p.buf_len,
-                true_start: p.true_start,
-                buf_start: p.buf_start,
-                seams: p.internal,
-                bbox: [b.0, b.1, b.2, b.3],
-            };
-            put(bytemuck::bytes_of(&r));
+            put(bytemuck::bytes_of(p));
         }
         for v in &self.verts {
             put(bytemuck::bytes_of(v));

@@ -29,6 +29,7 @@ use heapless::Vec;
 use crate::buffer::{grow, BufferError};
 use crate::geometry::{Convex, ConvexError, Point, Rect, Segment, MAX_PIECE_VERTICES};
 use crate::tvector::Entry;
+use compiled::PieceRec;
 use grid::Grid;
 
 /// The map every shipped firmware and `echoloc-lab` use: 1024 obstacles and
@@ -126,50 +127,6 @@ pub struct Obstacle {
     pub first_piece: u16,
     /// Number of pieces.
     pub piece_count: u16,
-}
-
-#[derive(Clone, Copy, Debug, Default)]
-struct PieceRec {
-    obstacle: u16,
-    true_len: u8,
-    buf_len: u8,
-    true_start: u32,
-    buf_start: u32,
-    /// Bounding box of the buffered outline (the true one until finished).
-    bbox: Rect0,
-    /// Edges shared with another piece of the same obstacle (seams left by
-    /// convex splitting): bit `i` for edge `i`. Not surfaces: no echo.
-    internal: u32,
-}
-
-impl PieceRec {
-    fn true_range(&self) -> core::ops::Range<usize> {
-        self.true_start as usize..self.true_start as usize + self.true_len as usize
-    }
-    fn buf_range(&self) -> core::ops::Range<usize> {
-        self.buf_start as usize..self.buf_start as usize + self.buf_len as usize
-    }
-}
-
-#[derive(Clone, Copy, Debug, Default)]
-struct Rect0(i32, i32, i32, i32);
-
-impl Rect0 {
-    /// The box of a piece's vertices (never empty).
-    fn of(pts: &[Point]) -> Self {
-        Rect::of_points(pts).map(Into::into).unwrap_or_default()
-    }
-}
-
-impl From<Rect> for Rect0 {
-    fn from(r: Rect) -> Self {
-        Rect0(r.min.x, r.min.y, r.max.x, r.max.y)
-    }
-}
-impl From<Rect0> for Rect {
-    fn from(r: Rect0) -> Self {
-        Rect { min: Point::new(r.0, r.1), max: Point::new(r.2, r.3) }
-    }
 }
 
 /// A read-only view of one piece.
@@ -274,8 +231,8 @@ impl<const PIECES: usize, const VERTS: usize, const CELLS: usize, const REFS: us
         for p in self.pieces.iter_mut() {
             p.buf_start = p.true_start;
             p.buf_len = p.true_len;
-            p.internal = 0;
-            p.bbox = Rect0::of(&self.verts[p.true_range()]);
+            p.seams = 0;
+            p.set_bbox(&self.verts[p.true_range()]);
         }
         self.grid.clear();
         self.finished = false;
@@ -359,8 +316,8 @@ impl<const PIECES: usize, const VERTS: usize, const CELLS: usize, const REFS: us
             buf_len: len,
             true_start: start,
             buf_start: start,
-            bbox: Rect0::of(p),
-            internal: 0,
+            seams: 0,
+            bbox: PieceRec::box_of(p),
         });
         self.true_verts = self.verts.len();
         if let Some(o) = self.obstacles.last_mut() {
@@ -402,9 +359,9 @@ impl<const PIECES: usize, const VERTS: usize, const CELLS: usize, const REFS: us
             let rec = &mut self.pieces[i];
             rec.buf_start = start;
             rec.buf_len = grown.len() as u8;
-            rec.bbox = Rect0::of(&grown);
+            rec.set_bbox(&grown);
         }
-        let boxes = self.pieces.iter().map(|p| Rect::from(p.bbox));
+        let boxes = self.pieces.iter().map(PieceRec::bbox);
         self.grid.build(boxes, cell_mm)
     }
 
@@ -412,7 +369,7 @@ impl<const PIECES: usize, const VERTS: usize, const CELLS: usize, const REFS: us
     fn mark_seams(&mut self) {
         for i in 0..self.pieces.len() {
             let mask = source::seams_of(&*self, i as u16).unwrap_or(0);
-            self.pieces[i].internal = mask;
+            self.pieces[i].seams = mask;
         }
     }
 
@@ -458,7 +415,7 @@ impl<const PIECES: usize, const VERTS: usize, const CELLS: usize, const REFS: us
 
     /// Bounding box of every buffered outline, or `None` for an empty map.
     pub fn bounds(&self) -> Option<Rect> {
-        self.pieces.iter().map(|p| Rect::from(p.bbox)).reduce(Rect::union)
+        self.pieces.iter().map(PieceRec::bbox).reduce(Rect::union)
     }
 
     /// The piece with id `id`, if any.
@@ -469,8 +426,8 @@ impl<const PIECES: usize, const VERTS: usize, const CELLS: usize, const REFS: us
             obstacle: r.obstacle,
             shape: Convex::new_unchecked(&self.verts[r.true_range()]),
             buffered: Convex::new_unchecked(&self.verts[r.buf_range()]),
-            bbox: r.bbox.into(),
-            internal: r.internal,
+            bbox: r.bbox(),
+            internal: r.seams,
         })
     }
 
@@ -525,7 +482,7 @@ impl<const PIECES: usize, const VERTS: usize, const CELLS: usize, const REFS: us
         let pieces = &self.pieces;
         Ok(self.grid.index().query(
             area,
-            |id| pieces.get(id as usize).map_or(Rect::around(Point::new(0, 0)), |p| Rect::from(p.bbox)),
+            |id| pieces.get(id as usize).map_or(Rect::around(Point::new(0, 0)), PieceRec::bbox),
             f,
         ))
     }
