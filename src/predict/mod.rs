@@ -314,6 +314,19 @@ fn search_piece<M: MapSource + ?Sized, K: Credence + ?Sized>(
             continue;
         }
         let (a, b) = shape.edge(edge);
+        // An edge wholly beyond the best echo cannot give a nearer one:
+        // skip its exact clipping (its box's distance bounds every point).
+        if let Some((r, _)) = best {
+            let e = Segment::new(a, b).bbox();
+            // Gaps below 2²⁴ convert exactly; the 1 mm margin dwarfs the rounding of the squares.
+            let gap = |lo: i32, v: i32, hi: i32| {
+                (lo as i64 - v as i64).max(v as i64 - hi as i64).clamp(0, 1 << 24) as i32 as f32
+            };
+            let (dx, dy) = (gap(e.min.x, o.x, e.max.x), gap(e.min.y, o.y, e.max.y));
+            if dx * dx + dy * dy > (*r + 1.0) * (*r + 1.0) {
+                continue;
+            }
+        }
         let Some((lo, hi)) = sector.edge_window(a, b) else { continue };
         stats.edges += 1;
         let ctx = EdgeCtx { o, a, b, axis, piece: piece.id, obstacle: piece.obstacle, edge: edge as u8, occluders };
