@@ -257,7 +257,10 @@ pub fn predict<M: MapSource + ?Sized, K: Credence + ?Sized>(
 /// clamped at 2²⁴ mm (far beyond any `R_max`): a lower bound of the squared
 /// distance to any point of the piece it holds.
 fn box_distance2(o: Point, b: &Rect) -> u64 {
-    let gap = |lo: i32, v: i32, hi: i32| (lo as i64 - v as i64).max(v as i64 - hi as i64).clamp(0, 1 << 24) as u64;
+    // In-range coordinates differ by less than 2³¹: the gaps are taken in
+    // 32 bits (as `Point::sub` does), so each square is one 32 × 32 → 64-bit
+    // multiply on a Cortex-M4.
+    let gap = |lo: i32, v: i32, hi: i32| lo.wrapping_sub(v).max(v.wrapping_sub(hi)).clamp(0, 1 << 24) as u32 as u64;
     let (dx, dy) = (gap(b.min.x, o.x, b.max.x), gap(b.min.y, o.y, b.max.y));
     dx * dx + dy * dy
 }
