@@ -8,7 +8,7 @@
 //! | [`model`] | plane and point range models and the odometry motion model, with analytic Jacobians |
 //! | [`ekf`] | the EKF over (x, y, φ): χ² gate, κ-weighted variance, Joseph form, lost state |
 //! | [`threshold`] | the paper's threshold method |
-//! | [`f32math`] | sin, cos and √ in single precision (the M4F has no double-precision FPU) |
+//! | [`f32math`] | (re-exported from the crate root, where the window uses it too) sin, cos and √ in single precision |
 //!
 //! [`Referencer`] ties them to the predictor for one reading at a time, the
 //! way the firmware runs: predict a transducer at the current estimate in
