@@ -20,7 +20,8 @@
 //! | [`map`] | the fixed-capacity obstacle map, its uniform grid index and its binary blob |
 //! | [`referencing`] | self-referencing: verdicts, the EKF over (x, y, φ), the paper's threshold method |
 //! | [`f32math`] | sin, cos and √ in single precision (the M4F has no double-precision FPU) |
-//! | [`scenario`] | scenario files: a recorded run, versioned and CRC-checked, read in place |
+//! | [`scenario`] | scenario files: a recorded run, versioned and CRC-checked, read in place; a replay bench that feeds one through the real driver |
+//! | [`controller`] | the controller's loop: ring readings and the robot's odometry through prediction, verdicts and the EKF |
 //!
 //! Every geometric *decision* is exact integer arithmetic; there is no
 //! allocator and no float on these paths (the pose filter in [`referencing`]
@@ -47,6 +48,7 @@
 #![warn(missing_docs)]
 
 pub mod buffer;
+pub mod controller;
 pub mod credence;
 pub mod driver;
 pub mod f32math;

@@ -51,6 +51,8 @@
 use crate::map::Crc32;
 use crate::predict::Mount;
 
+pub mod replay;
+
 /// `ECSN`.
 pub const MAGIC: [u8; 4] = *b"ECSN";
 /// The format version this reader takes.
@@ -141,9 +143,30 @@ pub enum ScenarioError {
     },
     /// More records than the format counts (2³² − 1).
     Count,
+    /// The ring driver replaying it runs on other timing than the scenario
+    /// was made for (ring period, slot length or speed of sound).
+    Driver {
+        /// The scenario's ring period, slot length (µs) and speed of sound (µm/s).
+        expected: [u32; 3],
+        /// The driver's.
+        found: [u32; 3],
+    },
 }
 
 impl Header {
+    /// `Ok` if a ring driver with this period and slot length (µs) and speed
+    /// of sound (µm/s) fires and times as the scenario assumes, so that
+    /// replaying it through that driver ([`replay`]) reproduces its records.
+    pub fn check_driver(&self, period_us: u32, slot_us: u32, speed_um_per_s: u32) -> Result<(), ScenarioError> {
+        let expected = [self.period_us, self.slot_us, self.speed_um_per_s];
+        let found = [period_us, slot_us, speed_um_per_s];
+        if expected == found {
+            Ok(())
+        } else {
+            Err(ScenarioError::Driver { expected, found })
+        }
+    }
+
     /// Every float finite, deviations and bounds not negative, a speed of sound.
     fn is_valid(&self) -> bool {
         let bounds = [self.bound_position_m, self.bound_heading_deg];
@@ -176,11 +199,29 @@ impl core::fmt::Display for ScenarioError {
                 write!(f, "made on the map with CRC {expected:#010x}, not this one ({found:#010x})")
             }
             Self::Count => write!(f, "more records than a scenario holds"),
+            Self::Driver { expected, found } => write!(
+                f,
+                "made for a ring of period {} µs, slot {} µs, sound {} µm/s; the driver runs {} µs, {} µs, {} µm/s",
+                expected[0], expected[1], expected[2], found[0], found[1], found[2]
+            ),
         }
     }
 }
 
 impl core::error::Error for ScenarioError {}
+
+/// One checked record's fields.
+fn record_of(r: &[u8]) -> Record {
+    Record {
+        time_us: u32_at(r, 0),
+        cycle: u32_at(r, 4),
+        transducer: r[8],
+        slot: r[9],
+        echo_us: (r[10] & 1 == 1).then(|| u32_at(r, 12)),
+        odometry: f32x3(r, 16),
+        truth: f32x3(r, 28),
+    }
+}
 
 fn u16_at(b: &[u8], o: usize) -> u16 {
     u16::from_le_bytes([b[o], b[o + 1]])
@@ -307,15 +348,12 @@ impl<'a> Scenario<'a> {
 
     /// The records in firing order.
     pub fn records(&self) -> impl Iterator<Item = Record> + 'a {
-        self.records.chunks_exact(RECORD_LEN).map(|r| Record {
-            time_us: u32_at(r, 0),
-            cycle: u32_at(r, 4),
-            transducer: r[8],
-            slot: r[9],
-            echo_us: (r[10] & 1 == 1).then(|| u32_at(r, 12)),
-            odometry: f32x3(r, 16),
-            truth: f32x3(r, 28),
-        })
+        self.records.chunks_exact(RECORD_LEN).map(record_of)
+    }
+
+    /// Record `i`, if there is one.
+    pub fn record(&self, i: usize) -> Option<Record> {
+        self.records.chunks_exact(RECORD_LEN).nth(i).map(record_of)
     }
 
     /// `Ok` if the scenario was made on the map whose blob has CRC `map_crc`.

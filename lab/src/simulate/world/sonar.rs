@@ -301,7 +301,10 @@ impl<'b> Listener<'b> {
         };
         match first {
             Some((t, src)) if t >= self.blank_s => {
-                let us = libm::floor(t * 1e6);
+                // Whole µs as the driver's clock counts them, never before
+                // blanking ends (`blank_s·1e6` can round to a hair below it,
+                // and the driver would take that for an echo in blanking).
+                let us = libm::floor(t * 1e6).max(f64::from(plan.min_echo_us()));
                 if us <= f64::from(plan.window_us()) {
                     (Some(us as u32), src)
                 } else {

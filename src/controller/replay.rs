@@ -1,0 +1,288 @@
+//! A scenario replayed through the real ring driver and the controller: the
+//! loop a board runs under QEMU, and the host tests run the same way.
+//!
+//! The driver fires on its own schedule over the scenario's [`Bench`]; each
+//! reading it returns goes, with the odometry up to it, through
+//! [`Controller::step`]; the estimate is scored against the scenario's true
+//! pose at that firing. Where the odometry comes from is the caller's: the
+//! scenario's own records ([`scenario_odometry`]), or a host link.
+
+use core::convert::Infallible;
+
+use super::{Controller, ControllerError, OdometryError, Step};
+use crate::credence::Credence;
+use crate::driver::{ConfigError, Eeruf, ModuleConfig, NoPin, Ring, RingConfig, SpeedOfSound};
+use crate::driver::{Error as DriverError, Module, RingReading, RingTiming, Schedule, Timing};
+use crate::map::MapSource;
+use crate::predict::{Mount, PredictParams};
+use crate::referencing::{wrap, Ekf, EkfConfig, EkfError, Motion, Referencer, VerdictConfig};
+use crate::scenario::replay::{AddrLine, Bench, BenchFault, EchoLine, InitLine};
+use crate::scenario::{Record, ScenarioError};
+
+/// Why a replay stopped.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum ReplayError {
+    /// The scenario does not fit this map, ring or driver.
+    Scenario(ScenarioError),
+    /// It has another number of transducers than the ring (`expected`).
+    Transducers {
+        /// The ring's.
+        expected: u8,
+        /// The scenario's.
+        found: u8,
+    },
+    /// Its start pose was refused by the filter.
+    Start(EkfError),
+    /// The driver fired differently from the scenario's records.
+    Bench(BenchFault),
+    /// The driver failed (the bench's pins cannot: kept for completeness).
+    Driver(DriverError<Infallible>),
+    /// The driver returned nothing within a whole slot of waits.
+    Stalled,
+    /// The controller refused a reading.
+    Controller(ControllerError),
+    /// The odometry source could not answer for a reading.
+    Odometry(OdometryError),
+}
+
+impl From<ControllerError> for ReplayError {
+    fn from(e: ControllerError) -> Self {
+        Self::Controller(e)
+    }
+}
+
+impl From<OdometryError> for ReplayError {
+    fn from(e: OdometryError) -> Self {
+        Self::Odometry(e)
+    }
+}
+
+impl core::fmt::Display for ReplayError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            Self::Scenario(e) => write!(f, "scenario: {e}"),
+            Self::Transducers { expected, found } => {
+                write!(f, "the scenario has {found} transducers, the ring {expected}")
+            }
+            Self::Start(e) => write!(f, "start pose refused: {e:?}"),
+            Self::Bench(e) => write!(f, "replay: {e}"),
+            Self::Driver(e) => write!(f, "driver: {e:?}"),
+            Self::Stalled => f.write_str("the driver returned no reading within a slot"),
+            Self::Controller(e) => write!(f, "controller: {e}"),
+            Self::Odometry(e) => write!(f, "odometry: {e}"),
+        }
+    }
+}
+
+impl core::error::Error for ReplayError {}
+
+/// Error figures of the estimate against the scenario's truth, over every
+/// reading (the lab's `simulate --json` "ekf" figures, same definitions).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Score {
+    /// Readings scored.
+    pub readings: u32,
+    /// Position RMSE, m.
+    pub position_rmse_m: f64,
+    /// Heading RMSE, degrees.
+    pub heading_rmse_deg: f64,
+    /// Largest position error, m.
+    pub max_position_m: f64,
+    /// Position error at the end, m.
+    pub final_position_m: f64,
+    /// Heading error at the end, degrees (absolute).
+    pub final_heading_deg: f64,
+    sum_p2: f64,
+    sum_h2: f64,
+}
+
+impl Score {
+    /// Adds the estimate `x` against the true pose `truth` (m, rad).
+    pub fn add(&mut self, x: [f32; 3], truth: [f32; 3]) {
+        let (dx, dy) = (f64::from(x[0]) - f64::from(truth[0]), f64::from(x[1]) - f64::from(truth[1]));
+        let p = libm::sqrt(dx * dx + dy * dy);
+        let h = f64::from(wrap(x[2] - truth[2])).to_degrees();
+        self.readings += 1;
+        self.sum_p2 += p * p;
+        self.sum_h2 += h * h;
+        let n = f64::from(self.readings);
+        self.position_rmse_m = libm::sqrt(self.sum_p2 / n);
+        self.heading_rmse_deg = libm::sqrt(self.sum_h2 / n);
+        self.max_position_m = self.max_position_m.max(p);
+        self.final_position_m = p;
+        self.final_heading_deg = h.abs();
+    }
+
+    /// Within the bounds: position RMSE (m) and heading RMSE (°).
+    pub fn within(&self, bound_position_m: f32, bound_heading_deg: f32) -> bool {
+        self.readings > 0
+            && self.position_rmse_m <= f64::from(bound_position_m)
+            && self.heading_rmse_deg <= f64::from(bound_heading_deg)
+    }
+}
+
+/// What a replay produced.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct ReplaySummary {
+    /// The estimate against the truth.
+    pub score: Score,
+    /// The scenario's bounds passed.
+    pub passed: bool,
+    /// The loop's counts.
+    pub counts: super::LoopCounts,
+    /// Readings the filter accepted and gated.
+    pub accepted: u32,
+    /// Readings its gate rejected.
+    pub gated: u32,
+    /// Times the filter became lost, and cycles it ended lost.
+    pub lost: (u32, u32),
+    /// The final estimate.
+    pub state: [f32; 3],
+}
+
+/// The settings of the ring and the filter a replay runs with.
+#[derive(Clone, Copy, Debug)]
+pub struct ReplaySetup<const N: usize> {
+    /// The module's timing (the scenario must have been made for it).
+    pub timing: Timing,
+    /// The ring's.
+    pub ring: RingTiming<N>,
+    /// Its firing order.
+    pub schedule: Schedule<N>,
+    /// Prediction.
+    pub params: PredictParams,
+    /// The filter.
+    pub ekf: EkfConfig,
+    /// How readings are judged.
+    pub verdicts: VerdictConfig,
+}
+
+impl<const N: usize> ReplaySetup<N> {
+    /// What `echoloc-lab simulate` writes scenarios for: a Polaroid 6500
+    /// module without BINH at 20.00 °C, a 5 ms ring-down gap, EERUF with
+    /// 1 ms steps and a 50 mm tolerance, the spread schedule; the default
+    /// EKF and the Polaroid verdicts.
+    pub const fn standard(params: PredictParams) -> Result<Self, ConfigError> {
+        let sound = match SpeedOfSound::at_centi_celsius(2000) {
+            Ok(s) => s,
+            Err(e) => return Err(e),
+        };
+        let timing = match ModuleConfig::polaroid_6500(sound).timing() {
+            Ok(t) => t,
+            Err(e) => return Err(e),
+        };
+        let eeruf = Eeruf { alternating_us: 1_000, tolerance_mm: 50 };
+        let ring = match (RingConfig { ring_down_us: 5_000, eeruf: Some(eeruf) }).timing::<N>(&timing) {
+            Ok(r) => r,
+            Err(e) => return Err(e),
+        };
+        Ok(Self {
+            timing,
+            ring,
+            schedule: Schedule::spread(),
+            params,
+            ekf: EkfConfig::DEFAULT,
+            verdicts: VerdictConfig::POLAROID,
+        })
+    }
+}
+
+/// The ring driver over a bench, `A` address lines for `N` transducers.
+pub type BenchRing<'b, 's, const A: usize, const N: usize> =
+    Ring<InitLine<'b, 's>, EchoLine<'b, 's>, NoPin<Infallible>, AddrLine<'b, 's>, &'b Bench<'s>, A, N>;
+
+/// The odometry the scenario recorded for `record`.
+pub fn scenario_odometry(_: &RingReading, record: &Record) -> Result<Motion, ReplayError> {
+    Ok(Motion { dx: record.odometry[0], dy: record.odometry[1], dphi: record.odometry[2] })
+}
+
+/// Checks the scenario against the map's CRC, the ring and the driver.
+pub fn check<const N: usize>(bench: &Bench<'_>, map_crc: u32, setup: &ReplaySetup<N>) -> Result<(), ReplayError> {
+    let s = bench.scenario();
+    s.check_map(map_crc).map_err(ReplayError::Scenario)?;
+    if s.transducers() != N {
+        return Err(ReplayError::Transducers { expected: N as u8, found: s.transducers() as u8 });
+    }
+    s.header()
+        .check_driver(setup.ring.period_us(), setup.ring.slot_us(), setup.timing.sound().um_per_s())
+        .map_err(ReplayError::Scenario)
+}
+
+/// Replays every record of the bench's scenario: the driver fires and times
+/// each ping, `odometry` gives the motion up to it, the controller judges it
+/// and updates the filter, and `each` sees every step (for a link, a log or
+/// a cost counter). Call [`check`] first.
+#[allow(clippy::too_many_arguments)]
+pub fn run<M, K, const A: usize, const N: usize>(
+    bench: &Bench<'_>,
+    map: &M,
+    mounts: &[Mount],
+    credence: &K,
+    setup: &ReplaySetup<N>,
+    mut odometry: impl FnMut(&RingReading, &Record) -> Result<Motion, ReplayError>,
+    mut each: impl FnMut(&Controller<'_, M, K>, &RingReading, &Record, &Step),
+) -> Result<ReplaySummary, ReplayError>
+where
+    M: MapSource + ?Sized,
+    K: Credence + ?Sized,
+{
+    let header = *bench.scenario().header();
+    let ekf = Ekf::new(header.start, header.start_sigma, setup.ekf).map_err(ReplayError::Start)?;
+    let mut controller = Controller::new(map, mounts, setup.params, credence, Referencer::new(ekf, setup.verdicts));
+    let addr: [AddrLine<'_, '_>; A] = core::array::from_fn(|bit| bench.addr(bit as u8));
+    let module = Module::new(bench.init(), bench.echo(), addr, bench, setup.timing);
+    let mut ring: BenchRing<'_, '_, A, N> = Ring::new(module, setup.schedule, setup.ring);
+    let mut score = Score::default();
+    let (mut accepted, mut gated) = (0u32, 0u32);
+    // A slot is one window and a gap: far fewer waits than its length in µs.
+    let max_waits = setup.ring.slot_us().saturating_add(setup.ring.period_us());
+    let total = bench.scenario().len();
+    for k in 0..total {
+        let mut waits = 0u32;
+        let reading = loop {
+            if let Some(f) = bench.fault() {
+                return Err(ReplayError::Bench(f));
+            }
+            match ring.poll() {
+                Ok(Some(r)) => break r,
+                Ok(None) => {
+                    waits += 1;
+                    if waits > max_waits {
+                        return Err(ReplayError::Stalled);
+                    }
+                    bench.wait(ring.next_fire_us());
+                }
+                Err(e) => return Err(ReplayError::Driver(e)),
+            }
+        };
+        // The reading must be the ping of record k (a reading without a
+        // ping, such as a refused start, would pair with the wrong truth).
+        let record = match bench.last_record() {
+            Some((i, r)) if i == k => r,
+            _ => return Err(ReplayError::Bench(bench.fault().unwrap_or(BenchFault::Unpaired { record: k as u32 }))),
+        };
+        let u = odometry(&reading, &record)?;
+        let step = controller.step(&u, &reading)?;
+        match step.report.update {
+            Some(crate::referencing::Update::Accepted { .. }) => accepted += 1,
+            Some(crate::referencing::Update::Gated { .. }) => gated += 1,
+            _ => {}
+        }
+        score.add(controller.state(), record.truth);
+        each(&controller, &reading, &record, &step);
+    }
+    controller.finish();
+    let ekf = &controller.referencer().ekf;
+    Ok(ReplaySummary {
+        score,
+        passed: score.within(header.bound_position_m, header.bound_heading_deg),
+        counts: controller.counts(),
+        accepted,
+        gated,
+        lost: (ekf.lost_count(), ekf.cycles_lost()),
+        state: controller.state(),
+    })
+}
