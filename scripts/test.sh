@@ -71,6 +71,9 @@ for bin in depot kappa_cost ekf_cost; do
   }
 done
 
+step "the whole loop against planted failures (issue #12): the depot scenario, its truth shifted by 1 m, a flipped bit, another map"
+bash scripts/replay-checks.sh
+
 step "big maps (issue #11 item 5): the depot tiled 1x1, 3x2 and 4x4, imported and run from a flash partition"
 bash scripts/big-maps.sh
 

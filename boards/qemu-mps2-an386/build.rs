@@ -8,5 +8,7 @@ fn main() {
     println!("cargo:rustc-link-search={}", root.display());
     println!("cargo:rerun-if-changed=../../memory.x");
     println!("cargo:rerun-if-changed=office.map");
+    println!("cargo:rerun-if-changed=depot.map");
+    println!("cargo:rerun-if-changed=depot.scn");
     println!("cargo:rustc-link-arg-bins=-Tlink.x");
 }

@@ -74,3 +74,31 @@ fn verdicts_find_unmapped_objects() {
     assert!(num(d, "precision") > 0.5 && num(d, "recall") > 0.3, "{d}");
     assert!(num(&v, "verdicts.confirmed") > 0.0 && num(&v, "verdicts.unknown_obstacle") > 0.0, "{v}");
 }
+
+/// The QEMU board's scenario (`boards/qemu-mps2-an386/depot.scn`, replayed
+/// by the README's main command through the real driver) is what the
+/// simulator makes today, and `scenario replay` gives the simulate run's
+/// figures for it.
+#[test]
+fn checked_in_board_scenario_is_fresh() {
+    let out = common::tmp("self-ref", "depot.scn");
+    let map = common::root().join("boards/qemu-mps2-an386/depot.map");
+    let args =
+        ["--map", map.to_str().unwrap(), "--seed", "1", "--distance-m", "40", "--scenario", out.to_str().unwrap()];
+    let v = simulate(&args);
+    common::assert_blob_fresh(
+        &out,
+        "boards/qemu-mps2-an386/depot.scn",
+        "cargo run --release -p echoloc-lab -- simulate --map boards/qemu-mps2-an386/depot.map --seed 1 --distance-m 40 --scenario boards/qemu-mps2-an386/depot.scn",
+    );
+    let o = common::lab()
+        .args(["scenario", "replay", "--json", "--map", map.to_str().unwrap()])
+        .arg(common::root().join("boards/qemu-mps2-an386/depot.scn"))
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let r: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(r["ekf"], v["ekf"], "replay {r}\nsimulate {v}");
+    // The board's bounds hold with room: a tracking run, not a marginal one.
+    assert!(num(&v, "ekf.position_rmse_m") <= 0.03 && num(&v, "ekf.heading_rmse_deg") <= 0.7, "{v}");
+}

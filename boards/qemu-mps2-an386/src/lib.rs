@@ -4,6 +4,8 @@
 //! into a failing exit code (linked into every binary that uses this crate).
 #![no_std]
 
+pub mod replay;
+
 use cortex_m::peripheral::{syst::SystClkSource, SYST};
 use cortex_m_rt::{exception, ExceptionFrame};
 use cortex_m_semihosting::{debug, hprintln};

@@ -32,7 +32,7 @@ use echoloc::predict::{predict_ring, Pose, PredictParams, Prediction, PIONEER16}
 use echoloc::referencing::{Ekf, EkfConfig, Motion, Reading, Referencer, VerdictConfig};
 use echoloc::window::{Strategy, WindowParams};
 use qemu_mps2_an386::{
-    calibrate, elapsed, exit, first_unpainted, flash_bytes, free_poses, metric, paint_free_stack, stack_bounds,
+    calibrate, elapsed, exit, first_unpainted, flash_bytes, free_poses, metric, paint_free_stack, replay, stack_bounds,
     stack_high_water, start_systick, static_ram_bytes, ticks, time_rings, RingTimes,
 };
 use static_cell::ConstStaticCell;
@@ -40,6 +40,9 @@ use static_cell::ConstStaticCell;
 /// The compiled maps, in flash, aligned for reading in place.
 static OFFICE: &Aligned<[u8]> = &Aligned(*include_bytes!("../office.map"));
 static DEPOT: &Aligned<[u8]> = &Aligned(*include_bytes!("../depot.map"));
+/// The scenario the whole loop replays: 40 m through the depot, half the
+/// readings inconsistent with the map (`echoloc-lab simulate --seed 1`).
+static SCENARIO: &[u8] = include_bytes!("../depot.scn");
 /// Scratch RAM for the corrupted copy of the office map.
 static SCRATCH: ConstStaticCell<Aligned<[u8; 4096]>> = ConstStaticCell::new(Aligned([0; 4096]));
 
@@ -227,9 +230,20 @@ fn main() -> ! {
     }
     metric("stack_bytes", stack as u64);
     metric("ram_static_bytes", static_ram_bytes() as u64);
-    let maps = OFFICE.0.len() + DEPOT.0.len();
-    metric("flash_bytes", (flash_bytes() - maps) as u64);
-    hprintln!("(flash_bytes is the image without its {} bytes of compiled maps)", maps);
+    let data = OFFICE.0.len() + DEPOT.0.len() + SCENARIO.len();
+    metric("flash_bytes", (flash_bytes() - data) as u64);
+    hprintln!("(flash_bytes is the image without its {} bytes of compiled maps and scenario)", data);
+
+    // --- The whole loop: the depot scenario through the ring driver, the
+    // quantised credence, the verdicts and the EKF, against its truth.
+    match replay::replay(SCENARIO, &depot, echoloc::map::crc32(&DEPOT.0), &net, &syst, per_tick) {
+        Some(r) => {
+            let h = echoloc::scenario::Scenario::parse(SCENARIO).map(|s| *s.header()).ok();
+            let bounds = h.map_or((0.0, 0.0), |h| (h.bound_position_m, h.bound_heading_deg));
+            ok &= replay::report(&r, bounds);
+        }
+        None => ok = false,
+    }
 
     let (used, size) = stack_high_water();
     hprintln!("stack high-water mark: {} of {} bytes", used, size);

@@ -1,0 +1,179 @@
+//! The whole loop on the board: a scenario replayed through the real ring
+//! driver (over the core's replay bench, which drives ECHO and the
+//! microsecond clock from the scenario's echo times), then prediction with
+//! the quantised credence, verdicts and the EKF, reading after reading
+//! ([`echoloc::controller::replay`]). Prints the pose error against the
+//! scenario's ground truth and the loop's cost as `metric` lines.
+
+use cortex_m::peripheral::SYST;
+use cortex_m_semihosting::hprintln;
+use echoloc::controller::replay::{check, run, scenario_odometry, ReplaySetup, ReplaySummary};
+use echoloc::credence::net::CredenceNet;
+use echoloc::map::{MapSource, MapView};
+use echoloc::predict::{Mount, PredictParams};
+use echoloc::scenario::replay::Bench;
+use echoloc::scenario::Scenario;
+use echoloc::window::WindowParams;
+
+use crate::{elapsed, first_unpainted, paint_free_stack, stack_bounds, ticks};
+
+/// Transducers the board's ring has (a Pioneer ring: 4 address lines).
+pub const TRANSDUCERS: usize = 16;
+/// How far the bench's clock moves at a wait during a ping with no edge
+/// due sooner, µs: the poll timer of a board that also wakes on the edge.
+pub const POLL_STEP_US: u32 = 1_000;
+
+/// The loop's settings on this board for `map`.
+pub fn setup(map: &MapView<'_>) -> Option<ReplaySetup<TRANSDUCERS>> {
+    ReplaySetup::standard(PredictParams::new(WindowParams { tb_mm: map.buffer_mm(), ..WindowParams::MARGE })).ok()
+}
+
+/// What a replay on the board measured.
+pub struct BoardReplay {
+    /// The loop's figures.
+    pub summary: ReplaySummary,
+    /// Instructions per reading (driver, prediction, verdict, EKF), mean and worst.
+    pub insns_per_reading: (u64, u64),
+    /// Stack the loop used, bytes.
+    pub stack_bytes: usize,
+}
+
+/// Replays `bytes` (a scenario made on the map whose blob has CRC
+/// `map_crc`), printing what it finds. `None`, with a FAIL line, when the
+/// scenario is refused or the loop stops on an error.
+pub fn replay(
+    bytes: &[u8],
+    map: &MapView<'_>,
+    map_crc: u32,
+    net: &CredenceNet<'_>,
+    syst: &Option<SYST>,
+    per_tick: u32,
+) -> Option<BoardReplay> {
+    let scenario = match Scenario::parse(bytes) {
+        Ok(s) => s,
+        Err(e) => {
+            hprintln!("FAIL: scenario refused: {}", e);
+            return None;
+        }
+    };
+    let Some(setup) = setup(map) else {
+        hprintln!("FAIL: the board's ring configuration");
+        return None;
+    };
+    let mut mounts = [Mount { x_mm: 0, y_mm: 0, heading_mdeg: 0 }; TRANSDUCERS];
+    for (i, m) in mounts.iter_mut().enumerate() {
+        *m = scenario.mount(i).unwrap_or(*m);
+    }
+    let bench = Bench::new(scenario, POLL_STEP_US);
+    if let Err(e) = check(&bench, map_crc, &setup) {
+        hprintln!("FAIL: scenario refused: {}", e);
+        return None;
+    }
+    let h = scenario.header();
+    let f = |v: f32| Fixed6(f64::from(v));
+    hprintln!(
+        "scenario: {} records, {} transducers, {} bytes; start ({}, {}) m, {} rad; bounds {} m, {} deg RMSE",
+        scenario.len(),
+        scenario.transducers(),
+        bytes.len(),
+        f(h.start[0]),
+        f(h.start[1]),
+        f(h.start[2]),
+        f(h.bound_position_m),
+        f(h.bound_heading_deg)
+    );
+    let (_, bottom) = stack_bounds();
+    let sp = paint_free_stack(bottom);
+    let (mut total, mut worst) = (0u64, 0u64);
+    let mut t0 = ticks(syst);
+    let result = run_loop(&bench, map, &mounts, net, &setup, &mut |_| {
+        let t = ticks(syst);
+        let n = u64::from(elapsed(t0, t)) * u64::from(per_tick);
+        total += n;
+        worst = worst.max(n);
+        // The callback's own cost is left out of the next reading.
+        t0 = ticks(syst);
+    });
+    let stack_bytes = sp - first_unpainted(bottom, sp);
+    let summary = match result {
+        Ok(s) => s,
+        Err(e) => {
+            hprintln!("FAIL: the loop stopped: {}", e);
+            return None;
+        }
+    };
+    let n = u64::from(summary.score.readings.max(1));
+    Some(BoardReplay { summary, insns_per_reading: (total / n, worst), stack_bytes })
+}
+
+/// The loop itself, never inlined, so that its frames lie below the
+/// caller's painted stack pointer.
+#[inline(never)]
+fn run_loop(
+    bench: &Bench<'_>,
+    map: &MapView<'_>,
+    mounts: &[Mount],
+    net: &CredenceNet<'_>,
+    setup: &ReplaySetup<TRANSDUCERS>,
+    tick: &mut dyn FnMut(u32),
+) -> Result<ReplaySummary, echoloc::controller::replay::ReplayError> {
+    run::<_, _, 4, TRANSDUCERS>(bench, map, mounts, net, setup, scenario_odometry, |c, _, _, _| {
+        tick(c.counts().readings)
+    })
+}
+
+/// `v` with six decimals, formatted with integers only: core's float
+/// formatting would add about 10 KiB of flash for a few lines of output.
+pub struct Fixed6(pub f64);
+
+impl core::fmt::Display for Fixed6 {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        if !self.0.is_finite() {
+            return f.write_str("nan");
+        }
+        let micro = libm::round(self.0 * 1e6) as i64;
+        let sign = if micro < 0 { "-" } else { "" };
+        let m = micro.unsigned_abs();
+        write!(f, "{}{}.{:06}", sign, m / 1_000_000, m % 1_000_000)
+    }
+}
+
+/// Prints a replay's findings and metrics; true when it met the scenario's bounds.
+pub fn report(r: &BoardReplay, bounds: (f32, f32)) -> bool {
+    let s = &r.summary;
+    let c = &s.counts;
+    let (bp, bh) = (Fixed6(f64::from(bounds.0)), Fixed6(f64::from(bounds.1)));
+    hprintln!(
+        "loop: {} readings in {} cycles: {} echoes ({} not confirmed by EERUF), {} no echo, {} invalid; EKF accepted {}, gated {}; lost {} times, {} cycles",
+        c.readings, c.cycles, c.echoes, c.unconfirmed, c.no_echo, c.invalid, s.accepted, s.gated, s.lost.0, s.lost.1
+    );
+    let x = s.state.map(|v| Fixed6(f64::from(v)));
+    hprintln!(
+        "pose error against the ground truth: RMSE {} m and {} deg, max {} m, final {} m and {} deg; final estimate ({}, {}) m, {} rad",
+        Fixed6(s.score.position_rmse_m),
+        Fixed6(s.score.heading_rmse_deg),
+        Fixed6(s.score.max_position_m),
+        Fixed6(s.score.final_position_m),
+        Fixed6(s.score.final_heading_deg),
+        x[0],
+        x[1],
+        x[2]
+    );
+    hprintln!("metric pose_rmse_m {}", Fixed6(s.score.position_rmse_m));
+    hprintln!("metric heading_rmse_deg {}", Fixed6(s.score.heading_rmse_deg));
+    crate::metric("loop_insns_per_reading", r.insns_per_reading.0);
+    crate::metric("loop_insns_per_reading_max", r.insns_per_reading.1);
+    crate::metric("loop_stack_bytes", r.stack_bytes as u64);
+    if s.passed {
+        hprintln!("loop: within the scenario's bounds ({} m, {} deg RMSE)", bp, bh);
+    } else {
+        hprintln!(
+            "FAIL: pose error beyond the scenario's bounds: {} m (bound {} m), {} deg (bound {} deg)",
+            Fixed6(s.score.position_rmse_m),
+            bp,
+            Fixed6(s.score.heading_rmse_deg),
+            bh
+        );
+    }
+    s.passed
+}
