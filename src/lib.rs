@@ -21,6 +21,7 @@
 //! | [`referencing`] | self-referencing: verdicts, the EKF over (x, y, φ), the paper's threshold method |
 //! | [`f32math`] | sin, cos and √ in single precision (the M4F has no double-precision FPU) |
 //! | [`scenario`] | scenario files: a recorded run, versioned and CRC-checked, read in place; a replay bench that feeds one through the real driver |
+//! | [`link`] | the host link: versioned messages, postcard, COBS and CRC-32 frames over `embedded-io` |
 //! | [`controller`] | the controller's loop: ring readings and the robot's odometry through prediction, verdicts and the EKF |
 //!
 //! Every geometric *decision* is exact integer arithmetic; there is no
@@ -53,6 +54,7 @@ pub mod credence;
 pub mod driver;
 pub mod f32math;
 pub mod geometry;
+pub mod link;
 pub mod map;
 pub mod predict;
 pub mod referencing;
