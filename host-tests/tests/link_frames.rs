@@ -30,14 +30,14 @@ fn reading(i: u32) -> FromController {
         time_us: i * 40_000,
         cycle: i / 16,
         transducer: (i % 16) as u8,
-        outcome: if i % 3 == 0 { WireOutcome::NoEcho } else { WireOutcome::Unconfirmed(400 + i) },
-        predicted_mm: (i % 5 != 0).then_some(500 + 2 * i),
+        outcome: if i.is_multiple_of(3) { WireOutcome::NoEcho } else { WireOutcome::Unconfirmed(400 + i) },
+        predicted_mm: (!i.is_multiple_of(5)).then_some(500 + 2 * i),
         kappa: 0.75,
         verdict: WireVerdict::Confirmed,
         update: WireUpdate::Accepted,
         pose: [i as f32, 2.0, -0.5],
         covariance: [1e-4, 0.0, 1e-6, 1e-4, 0.0, 1e-5],
-        lost: i % 7 == 0,
+        lost: i.is_multiple_of(7),
     })
 }
 

@@ -3,6 +3,7 @@
 //! output is JSON.
 
 mod credence;
+mod link;
 mod map;
 mod predict;
 mod scenario;
@@ -35,6 +36,8 @@ enum Cmd {
     /// Scenario files: replay one on the host through the same filters.
     #[command(subcommand)]
     Scenario(scenario::ScenarioCmd),
+    /// The host link: stream odometry to a controller (the QEMU firmware, or a socket) and print what it sends back as JSON lines.
+    Link(link::LinkArgs),
     /// Credence net: leave-one-day-out evaluation against the Gaussian baseline, training, quantisation, figures.
     Train(credence::TrainArgs),
 }
@@ -70,6 +73,7 @@ fn run(cmd: Cmd) -> Result<String, map::LabError> {
         Cmd::Synth(a) => credence::synth_cmd(&a).map_err(|e| map::LabError(e.to_string())),
         Cmd::Simulate(a) => simulate::simulate_cmd(&a),
         Cmd::Scenario(c) => scenario::run(c),
+        Cmd::Link(a) => link::link_cmd(&a),
         Cmd::Train(a) => credence::train_cmd(&a).map_err(|e| map::LabError(e.to_string())),
     }
 }

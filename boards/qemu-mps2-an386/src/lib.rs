@@ -5,6 +5,7 @@
 #![no_std]
 
 pub mod replay;
+pub mod uart;
 
 use cortex_m::peripheral::{syst::SystClkSource, SYST};
 use cortex_m_rt::{exception, ExceptionFrame};

@@ -23,6 +23,44 @@ pub const TRANSDUCERS: usize = 16;
 /// due sooner, µs: the poll timer of a board that also wakes on the edge.
 pub const POLL_STEP_US: u32 = 1_000;
 
+/// Where a scenario not linked into the image is read from: the flash
+/// partition QEMU's generic loader fills (`-device
+/// loader,file=X.scn,addr=0x00300000`), past the 1 MiB image and the map
+/// partition's first MiB.
+pub const SCENARIO_PARTITION: usize = 0x0030_0000;
+/// Its size: a scenario claiming more is refused before it is read.
+pub const SCENARIO_PARTITION_LEN: usize = 1024 * 1024;
+
+/// The scenario in the partition, its length from its header, bounded by
+/// the partition (not yet validated: `Scenario::parse` does that). `None`,
+/// with a FAIL line, when there is none or it claims too much.
+pub fn scenario_partition() -> Option<&'static [u8]> {
+    use echoloc::scenario::{FIXED_HEADER_LEN, MAGIC, RECORD_LEN};
+    // SAFETY: SCENARIO_PARTITION..+SCENARIO_PARTITION_LEN lies in SSRAM1
+    // (4 MiB at 0 on mps2-an386), always mapped and readable, outside every
+    // region the linker places anything in (FLASH 0..1 MiB, RAM at
+    // 0x2000_0000), and nothing in these programs writes it.
+    let header: [u8; FIXED_HEADER_LEN] =
+        unsafe { core::ptr::read_volatile(SCENARIO_PARTITION as *const [u8; FIXED_HEADER_LEN]) };
+    if header[..4] != MAGIC[..] {
+        hprintln!("FAIL: no scenario at {:#010x}", SCENARIO_PARTITION);
+        return None;
+    }
+    let head = u16::from_le_bytes([header[6], header[7]]) as usize;
+    let records = u32::from_le_bytes([header[16], header[17], header[18], header[19]]) as usize;
+    let len = records.checked_mul(RECORD_LEN).and_then(|r| r.checked_add(head + 4));
+    let Some(len) = len.filter(|&n| n <= SCENARIO_PARTITION_LEN) else {
+        hprintln!(
+            "FAIL: the scenario header claims more than the {} byte partition holds: refused",
+            SCENARIO_PARTITION_LEN
+        );
+        return None;
+    };
+    // SAFETY: `len` ≤ SCENARIO_PARTITION_LEN: inside the partition described
+    // above, never written while the program runs, so a valid `'static` slice.
+    Some(unsafe { core::slice::from_raw_parts(SCENARIO_PARTITION as *const u8, len) })
+}
+
 /// The loop's settings on this board for `map`.
 pub fn setup(map: &MapView<'_>) -> Option<ReplaySetup<TRANSDUCERS>> {
     ReplaySetup::standard(PredictParams::new(WindowParams { tb_mm: map.buffer_mm(), ..WindowParams::MARGE })).ok()

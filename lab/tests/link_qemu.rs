@@ -1,0 +1,100 @@
+//! The host link end to end (issue #12 item 2): `echoloc-lab link` starts the
+//! QEMU firmware (`--bin link`) with UART0 on a Unix socket, streams the
+//! committed depot scenario's odometry to it with every 25th frame damaged
+//! and a garbage frame after each, and prints what comes back. Checked here:
+//! the poses that come back against the scenario's ground truth (the
+//! independent simulator's), one reading per record, and the link's own
+//! count of frames taken and dropped against what was sent.
+//!
+//! Needs `qemu-system-arm` (scripts/setup.sh installs it) and builds the
+//! firmware for thumbv7em-none-eabihf (a no-op when `scripts/test.sh` has).
+
+mod common;
+
+use std::process::Command;
+
+use common::{lab, root};
+use echoloc::scenario::Scenario;
+
+fn build_firmware() -> std::path::PathBuf {
+    let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
+    let o = Command::new(cargo)
+        .current_dir(root())
+        .args([
+            "build",
+            "-q",
+            "-p",
+            "qemu-mps2-an386",
+            "--bin",
+            "link",
+            "--target",
+            "thumbv7em-none-eabihf",
+            "--release",
+        ])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "building the link firmware: {}", String::from_utf8_lossy(&o.stderr));
+    let dir = std::env::var("CARGO_TARGET_DIR").map_or_else(|_| root().join("target"), std::path::PathBuf::from);
+    dir.join("thumbv7em-none-eabihf/release/link")
+}
+
+#[test]
+fn poses_over_the_link_track_the_truth_and_every_bad_frame_is_counted() {
+    let elf = build_firmware();
+    let scn = root().join("boards/qemu-mps2-an386/depot.scn");
+    let o = lab()
+        .args(["link", "--corrupt-every", "25", "--timeout-s", "300", "--qemu"])
+        .arg(&elf)
+        .arg("--scenario")
+        .arg(&scn)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "link failed: {}", String::from_utf8_lossy(&o.stderr));
+    let lines: Vec<serde_json::Value> =
+        String::from_utf8(o.stdout).unwrap().lines().map(|l| serde_json::from_str(l).unwrap()).collect();
+
+    let bytes = std::fs::read(&scn).unwrap();
+    let s = Scenario::parse(&bytes).unwrap();
+    let truth: Vec<[f32; 3]> = s.records().map(|r| r.truth).collect();
+    let readings: Vec<&serde_json::Value> = lines.iter().filter_map(|v| v.get("Reading")).collect();
+    assert_eq!(readings.len(), truth.len(), "one reading per record");
+    assert!(lines[0].get("Hello").is_some(), "{}", lines[0]);
+    let (mut p2, mut h2) = (0.0f64, 0.0f64);
+    for (r, t) in readings.iter().zip(&truth) {
+        let pose: Vec<f64> = r["pose"].as_array().unwrap().iter().map(|x| x.as_f64().unwrap()).collect();
+        let cov: Vec<f64> = r["covariance"].as_array().unwrap().iter().map(|x| x.as_f64().unwrap()).collect();
+        assert!(cov[0] > 0.0 && cov[3] > 0.0 && cov[5] > 0.0, "covariance diagonal positive: {r}");
+        let (dx, dy) = (pose[0] - f64::from(t[0]), pose[1] - f64::from(t[1]));
+        let dh = (pose[2] - f64::from(t[2]) + std::f64::consts::PI).rem_euclid(2.0 * std::f64::consts::PI)
+            - std::f64::consts::PI;
+        p2 += dx * dx + dy * dy;
+        h2 += dh.to_degrees().powi(2);
+    }
+    let n = truth.len() as f64;
+    let (p, h) = ((p2 / n).sqrt(), (h2 / n).sqrt());
+    let hd = s.header();
+    assert!(p <= f64::from(hd.bound_position_m) && h <= f64::from(hd.bound_heading_deg), "RMSE {p} m, {h} deg");
+    // Not a filter that ignored its readings: it corrected, and said so.
+    let accepted = readings.iter().filter(|r| r["update"] == "Accepted").count();
+    assert!(accepted > 200, "{accepted} readings accepted");
+    assert!(lines.iter().filter(|v| v.get("Cycle").is_some()).count() >= 150);
+
+    // The link's counts against what the host sent.
+    let status = &lines.iter().find_map(|v| v.get("Status")).expect("a Status message")["rx"];
+    let host = &lines.last().unwrap()["host"];
+    let (sent, corrupted, garbage) = (
+        host["odometry_sent"].as_u64().unwrap(),
+        host["corrupted"].as_u64().unwrap(),
+        host["garbage"].as_u64().unwrap(),
+    );
+    assert_eq!(sent, truth.len() as u64);
+    assert!(corrupted >= 100 && garbage == corrupted, "{host}");
+    let dropped: u64 =
+        ["overflow", "cobs", "short", "crc", "version", "decode"].iter().map(|k| status[k].as_u64().unwrap()).sum();
+    assert_eq!(dropped, corrupted + garbage, "every bad frame dropped and counted: {status}");
+    // Every good odometry frame taken (the closing End may come after the
+    // controller's last reading, when it no longer reads).
+    let ok = status["ok"].as_u64().unwrap();
+    assert!(ok == sent - corrupted || ok == sent - corrupted + 1, "{status}");
+    assert_eq!(host["firmware_exit"], 0);
+}
