@@ -59,6 +59,8 @@ ASSERT(ORIGIN(RAM) == 0x20000000 && LENGTH(RAM) == 192K, "stm32f4-sonar: RAM is 
     std::fs::write(&linker_script, script).expect("OUT_DIR is writable");
 
     println!("cargo:rustc-link-arg-bins=-T{}", linker_script.display());
+    // defmt's symbol table for the host-side decoder.
+    println!("cargo:rustc-link-arg-bins=-Tdefmt.x");
     println!("cargo:rerun-if-changed=memory.x");
     println!("cargo:rerun-if-changed=link.x.in");
     println!("cargo:rerun-if-changed=build.rs");

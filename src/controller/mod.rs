@@ -28,7 +28,9 @@ use crate::credence::Credence;
 use crate::driver::{Outcome, RingReading};
 use crate::map::MapSource;
 use crate::predict::{Mount, PredictParams};
-use crate::referencing::{CycleUpdates, Motion, Reading, ReadingReport, Referencer, ReferencerError, VerdictCounts};
+use crate::referencing::{
+    CycleUpdates, Ekf, Motion, Reading, ReadingReport, Referencer, ReferencerError, VerdictCounts,
+};
 
 /// Why a reading could not be processed.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -162,6 +164,12 @@ impl<'a, M: MapSource + ?Sized, K: Credence + ?Sized> Controller<'a, M, K> {
         }
         let report = self.referencer.reading(self.map, mount, &self.params, self.credence, reading)?;
         Ok(Step { cycle_end, reading, report })
+    }
+
+    /// Restarts the filter from `ekf` (a pose the robot's computer sent, a
+    /// relocalisation); the cycle in progress and the counts go on.
+    pub fn reset(&mut self, ekf: Ekf) {
+        self.referencer.ekf = ekf;
     }
 
     /// Closes the cycle in progress (at the end of a run).

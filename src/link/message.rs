@@ -27,6 +27,14 @@ pub enum ToController {
         /// θ, rad.
         theta: f32,
     },
+    /// Where the robot is: the filter restarts there, with these standard
+    /// deviations (the map's frame, m and rad).
+    SetPose {
+        /// x, y (m), φ (rad).
+        pose: [f32; 3],
+        /// Standard deviations of x, y and φ.
+        sigma: [f32; 3],
+    },
     /// No more odometry will come: finish and report.
     End,
 }
@@ -253,5 +261,7 @@ pub enum FromController {
         odometry_refused: u32,
         /// Readings processed.
         readings: u32,
+        /// Readings dropped because no odometry covered their time soon enough.
+        stale: u32,
     },
 }

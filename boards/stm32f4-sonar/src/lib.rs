@@ -16,9 +16,11 @@
 //! |---|---|---|
 //! | INIT | PE6, push-pull output | through the module's level shifter; high fires a ping |
 //! | BINH | PE7, push-pull output | ends blanking early (raised 1 ms after INIT: nearest range 172 mm) |
-//! | ECHO | PA0, input | open collector with an external pull-up to 3.3 V; PA0 is also TIM5_CH1, so a later revision can capture the edge on the clock's own timer and call `Ring::echo_captured` instead of polling |
+//! | ECHO | PA0, TIM5_CH1 (AF2) | open collector with an external pull-up to 3.3 V; the rising edge is captured by TIM5 channel 1 (hardware time stamp on the driver's own clock), handed to `Ring::echo_captured`; the level is read for the driver's stuck-high check and the window's end |
 //! | A0..A3 | PE2, PE3, PE4, PE5, push-pull outputs | multiplexer address, `A0` is bit 0 of the transducer index |
 //! | clock | TIM5 | 32 bits, prescaled to 1 MHz, free-running over the whole 2³² µs ([`Tim5Clock`]) |
+//! | host link | USART3: PD8 TX, PD9 RX, 115 200 baud 8N1 | the ST-LINK's virtual COM port; framed messages (`docs/link.md`) through [`HostPort`] |
+//! | log | RTT | `defmt` over the debug probe (`probe-rs run`, `.cargo/config.toml` in this folder) |
 //! | LD1 (green) | PB0 | on after a ring cycle in which at least half the judged readings confirmed the map |
 //! | LD3 (red) | PB14 | on after a ring cycle that saw an unknown obstacle |
 //!
@@ -44,12 +46,11 @@ use core::sync::atomic::{AtomicU32, Ordering};
 
 use cortex_m_rt::{exception, ExceptionFrame};
 use echoloc::credence::net::CredenceNet;
-use echoloc::driver::{Eeruf, ModuleConfig, Outcome, Ring, RingConfig, RingTiming, SpeedOfSound, Timing};
-use echoloc::map::MapView;
-use echoloc::predict::{predict_mount, Pose, PredictError, PredictParams, Prediction, PIONEER16};
-use echoloc::referencing::{self, Reading, Verdict, VerdictConfig, VerdictCounts};
+use echoloc::driver::{Eeruf, ModuleConfig, Ring, RingConfig, RingTiming, SpeedOfSound, Timing};
+use echoloc::predict::PredictParams;
+use echoloc::referencing::{VerdictConfig, VerdictCounts};
 use echoloc::window::WindowParams;
-use stm32f4xx_hal::gpio::{self, Input, Output, PushPull};
+use stm32f4xx_hal::gpio::{self, Output, PushPull};
 use stm32f4xx_hal::pac::TIM5;
 use stm32f4xx_hal::rcc::Rcc;
 use stm32f4xx_hal::timer::FTimer;
@@ -65,8 +66,8 @@ pub const ADDRESS_LINES: usize = 4;
 pub type Init = gpio::PE6<Output<PushPull>>;
 /// BINH: PE7.
 pub type Binh = gpio::PE7<Output<PushPull>>;
-/// ECHO: PA0 (TIM5_CH1).
-pub type Echo = gpio::PA0<Input>;
+/// ECHO: PA0 in TIM5_CH1, read as a level through [`EchoLevel`].
+pub type Echo = EchoLevel;
 /// One multiplexer address line: PE2..PE5 with the pin number erased.
 pub type Addr = gpio::gpioe::PEn<Output<PushPull>>;
 /// The sonar ring of this board, on a shared reference to its clock.
@@ -98,34 +99,163 @@ pub const RING_TIMING: RingTiming<TRANSDUCERS> =
     };
 
 /// A free-running microsecond counter on TIM5 (32 bits): the driver's
-/// [`Clock`].
+/// [`Clock`], and the ECHO edge's hardware time stamp.
 ///
 /// The HAL enables and resets TIM5 and sets its prescaler for 1 MHz from the
 /// APB1 timer clock; the auto-reload is then the whole 32-bit range, so the
 /// count wraps at 2³² µs exactly as [`Clock`] asks (the HAL's own `Counter`
 /// cannot: it reloads at `ticks - 1`, which would wrap at 2³² − 1).
+///
+/// Channel 1 captures the count on ECHO's rising edge (PA0 is TIM5_CH1,
+/// alternate function 2), through a 4-sample digital filter at the 84 MHz
+/// timer clock (≈ 48 ns: it rejects glitches, not echoes). The stamp is the
+/// timer's, taken by hardware at the edge; [`Tim5Clock::take_capture`] hands
+/// it to the loop, which passes it to `Ring::echo_captured`.
 #[derive(Debug)]
 pub struct Tim5Clock {
     tim: TIM5,
 }
 
 impl Tim5Clock {
-    /// Starts TIM5 counting microseconds from 0. The timer clock must be a
-    /// whole number of MHz (the HAL asserts it).
+    /// Starts TIM5 counting microseconds from 0, with channel 1 capturing
+    /// rising edges. The timer clock must be a whole number of MHz (the HAL
+    /// asserts it).
     pub fn start(tim: TIM5, rcc: &mut Rcc) -> Self {
         let tim = FTimer::<TIM5, 1_000_000>::new(tim, rcc).release();
         tim.arr().write(|w| w.arr().set(u32::MAX));
+        // CC1 as input from TI1, filter fCK_INT with N = 4 (0b0010).
+        tim.ccmr1_input().modify(|_, w| w.cc1s().ti1().ic1f().set(0b0010));
+        // Rising edge, capture enabled.
+        tim.ccer().modify(|_, w| w.cc1p().clear_bit().cc1np().clear_bit().cc1e().set_bit());
         // The prescaler is buffered: an update event loads it (and zeroes
         // the count) before the counter starts.
         tim.egr().write(|w| w.ug().set_bit());
         tim.cr1().modify(|_, w| w.cen().set_bit());
         Self { tim }
     }
+
+    /// The count latched at ECHO's last rising edge, if one came since the
+    /// last call (reading CCR1 clears the flag). An overcapture (a second
+    /// edge before this call) keeps the later stamp and clears the flag: it
+    /// cannot happen within one ping, where ECHO rises once and stays up
+    /// until INIT falls.
+    pub fn take_capture(&self) -> Option<u32> {
+        let sr = self.tim.sr().read();
+        if !sr.cc1if().bit_is_set() {
+            return None;
+        }
+        let stamp = self.tim.ccr1().read().ccr().bits();
+        if sr.cc1of().bit_is_set() {
+            self.tim.sr().modify(|_, w| w.cc1of().clear());
+        }
+        Some(stamp)
+    }
 }
 
 impl Clock for Tim5Clock {
     fn now_us(&self) -> u32 {
         self.tim.cnt().read().cnt().bits()
+    }
+}
+
+/// ECHO's level for the driver (its stuck-high check before a ping and the
+/// end of the listening window), read from GPIOA's input data register:
+/// PA0 is in its timer alternate function, where the HAL offers no input
+/// pin, but the input data register still samples it.
+#[derive(Debug)]
+pub struct EchoLevel {
+    _pin: gpio::PA0<gpio::Alternate<2>>,
+}
+
+impl EchoLevel {
+    /// Over PA0 in alternate function 2 (TIM5_CH1).
+    pub fn new(pin: gpio::PA0<gpio::Alternate<2>>) -> Self {
+        Self { _pin: pin }
+    }
+}
+
+impl embedded_hal::digital::ErrorType for EchoLevel {
+    type Error = core::convert::Infallible;
+}
+
+impl embedded_hal::digital::InputPin for EchoLevel {
+    fn is_high(&mut self) -> Result<bool, Self::Error> {
+        // SAFETY: a read of GPIOA's input data register, which has no side
+        // effects; this struct owns PA0, the only bit looked at.
+        #[allow(unsafe_code)]
+        let idr = unsafe { (*stm32f4xx_hal::pac::GPIOA::ptr()).idr().read().bits() };
+        Ok(idr & 1 != 0)
+    }
+
+    fn is_low(&mut self) -> Result<bool, Self::Error> {
+        self.is_high().map(|h| !h)
+    }
+}
+
+/// USART3 (PD8 TX, PD9 RX: the NUCLEO's ST-LINK virtual COM port) as the
+/// `embedded-io` port the host link runs over. The HAL's own `embedded-io`
+/// writer returns `Ok(0)` when the transmitter is busy, which `write_all`
+/// takes for a closed line, and it has no reader: this adapter blocks
+/// correctly and reads only when a byte is there.
+pub struct HostPort {
+    serial: stm32f4xx_hal::serial::Serial<stm32f4xx_hal::pac::USART3>,
+}
+
+impl core::fmt::Debug for HostPort {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str("HostPort(USART3)")
+    }
+}
+
+impl HostPort {
+    /// Over a configured USART3.
+    pub fn new(serial: stm32f4xx_hal::serial::Serial<stm32f4xx_hal::pac::USART3>) -> Self {
+        Self { serial }
+    }
+}
+
+/// The port's error: the USART's (framing, noise, overrun, parity).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct PortError(pub stm32f4xx_hal::serial::Error);
+
+impl embedded_io::Error for PortError {
+    fn kind(&self) -> embedded_io::ErrorKind {
+        embedded_io::ErrorKind::Other
+    }
+}
+
+impl embedded_io::ErrorType for HostPort {
+    type Error = PortError;
+}
+
+impl embedded_io::ReadReady for HostPort {
+    fn read_ready(&mut self) -> Result<bool, PortError> {
+        use stm32f4xx_hal::serial::RxISR;
+        Ok(self.serial.is_rx_not_empty())
+    }
+}
+
+impl embedded_io::Read for HostPort {
+    fn read(&mut self, buf: &mut [u8]) -> Result<usize, PortError> {
+        use embedded_hal_nb::serial::Read;
+        let Some(first) = buf.first_mut() else { return Ok(0) };
+        *first = nb::block!(self.serial.read()).map_err(PortError)?;
+        Ok(1)
+    }
+}
+
+impl embedded_io::Write for HostPort {
+    fn write(&mut self, buf: &[u8]) -> Result<usize, PortError> {
+        use embedded_hal_nb::serial::Write;
+        for &b in buf {
+            nb::block!(Write::write(&mut self.serial, b)).map_err(PortError)?;
+        }
+        Ok(buf.len())
+    }
+
+    fn flush(&mut self) -> Result<(), PortError> {
+        use embedded_hal_nb::serial::Write;
+        nb::block!(Write::flush(&mut self.serial)).map_err(PortError)
     }
 }
 
@@ -136,55 +266,10 @@ pub fn predict_params(tb_mm: u32) -> PredictParams {
     PredictParams::new(WindowParams { tb_mm, ..WindowParams::MARGE })
 }
 
-/// What one transducer should read from one pose.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum Expected {
-    /// Not predicted (yet), or the prediction failed: the reading cannot be judged.
-    Unknown,
-    /// No credible echo within range.
-    Nothing,
-    /// This echo.
-    Echo(Prediction),
-}
-
-/// Predicts transducer `transducer` of the Pioneer ring from `pose`. About a
-/// sixteenth of a ring prediction: it runs in the ring-down gap before that
-/// transducer fires.
-pub fn expect(
-    map: &MapView<'_>,
-    pose: &Pose,
-    transducer: u8,
-    params: &PredictParams,
-    net: &CredenceNet<'_>,
-) -> Result<Expected, PredictError> {
-    let Some(mount) = PIONEER16.get(usize::from(transducer)) else {
-        return Ok(Expected::Unknown);
-    };
-    let (p, _) = predict_mount(map, pose, mount, params, net)?;
-    Ok(p.map_or(Expected::Nothing, Expected::Echo))
-}
-
 /// The verdict settings of this module: the core's Polaroid defaults with
 /// the blanking BINH leaves ([`MODULE_TIMING`]) and a 1 µs clock.
 pub const VERDICTS: VerdictConfig =
     VerdictConfig { min_range_mm: MODULE_TIMING.min_range_mm(), ..VerdictConfig::POLAROID };
-
-/// Compares one ring outcome with what was expected for that transducer
-/// (the core's [`echoloc::referencing::judge`]). Only echoes EERUF accepted
-/// ([`Outcome::Range`]) and clean no-echoes are judged; an expectation not
-/// made yet judges nothing.
-pub fn judge(outcome: &Outcome, expected: &Expected) -> Verdict {
-    let reading = match *outcome {
-        Outcome::Range { range_mm, .. } => Reading::Echo { range_mm },
-        Outcome::NoEcho => Reading::NoEcho,
-        _ => Reading::Invalid,
-    };
-    match expected {
-        Expected::Unknown => Verdict::Inconclusive,
-        Expected::Nothing => referencing::judge(reading, None, &VERDICTS),
-        Expected::Echo(p) => referencing::judge(reading, Some(p), &VERDICTS),
-    }
-}
 
 /// At least half the judged readings of a cycle agreed with the map (and
 /// some were judged).
@@ -216,7 +301,8 @@ unsafe fn HardFault(ef: &ExceptionFrame) -> ! {
 /// it was: a 6500 sends one burst per rising INIT, so an INIT left high sends
 /// nothing more. A watchdog (not enabled here) would restart the controller.
 #[panic_handler]
-fn panic(_info: &core::panic::PanicInfo) -> ! {
+fn panic(info: &core::panic::PanicInfo) -> ! {
+    defmt::error!("panic: {}", defmt::Display2Format(info));
     park()
 }
 

@@ -1,42 +1,63 @@
-//! echoloc on an STM32F429ZI robot controller (cross-built, not run here).
+//! echoloc on an STM32F429ZI robot controller (cross-built, not run here):
+//! the whole loop.
 //!
-//! Brings up the clocks (168 MHz from the 8 MHz HSE), the 1 MHz TIM5 clock
-//! and the sonar pins (see the library's docs for the wiring), loads the
-//! compiled office map in place from flash (a `MapView`: no copy in RAM),
-//! and runs the ring for ever:
-//! the ring fires on its own schedule (`Ring::poll` never waits), each
-//! transducer's reading is compared with what the map predicts for it from
-//! the current pose estimate, and each transducer is predicted in the
-//! ring-down gap just before it fires, so one ring cycle predicts the whole
-//! ring for the pose of that moment. After each cycle the status LEDs show
-//! whether the map agreed and whether an unknown obstacle was seen.
+//! Brings up the clocks (168 MHz from the 8 MHz HSE), TIM5 as the 1 MHz
+//! clock with channel 1 capturing ECHO's edges, the sonar pins, USART3 as
+//! the host link, and loads the compiled office map in place from flash
+//! (a `MapView`: no copy in RAM). Then, for ever:
 //!
-//! The pose estimate stays where it starts: correcting it from the verdicts
-//! (the pose filter) is a later step.
+//! 1. **The ring** fires on its own schedule (`Ring::poll` never waits); an
+//!    ECHO edge stamped by TIM5's input capture finishes the ping in flight
+//!    (`Ring::echo_captured`), so an echo's time does not depend on when the
+//!    loop looks. Each reading waits in a short queue.
+//! 2. **The link**: odometry from the robot's computer (cumulative poses,
+//!    interpolated to each firing's time), and `SetPose` to (re)start the
+//!    filter where the robot is.
+//! 3. **The controller**, while the next ping is in flight (so that its
+//!    work and the blocking UART writes never delay a firing): each queued
+//!    reading whose odometry has come is predicted at the estimate, judged,
+//!    and fed to the EKF (`echoloc::controller::Controller`); a `Reading`
+//!    message goes back per reading and a `Cycle` message per ring cycle.
+//!    A reading left without odometry while four more came is judged with
+//!    no motion (counted as stale).
+//!
+//! The LEDs show, after each ring cycle, whether at least half of its judged
+//! readings confirmed the map (green) and whether it saw an unknown obstacle
+//! (red). `defmt` logs over RTT: `cd boards/stm32f4-sonar && cargo run
+//! --release` flashes and runs it through `probe-rs` (`.cargo/config.toml`).
 #![no_std]
 #![no_main]
 #![deny(unsafe_code)]
 
 use cortex_m_rt::entry;
-use echoloc::driver::{Error, Module, Ring, Schedule};
+use defmt_rtt as _;
+use echoloc::controller::{Controller, OdometrySample, OdometrySync};
+use echoloc::driver::{Error, Module, Ring, RingReading, Schedule};
+use echoloc::link::{CycleReport, FromController, Link, ReadingReport, ToController, PROTOCOL_VERSION};
 use echoloc::map::{Aligned, MapSource, MapView};
-use echoloc::predict::Pose;
-use echoloc::referencing::VerdictCounts;
+use echoloc::predict::PIONEER16;
+use echoloc::referencing::{Ekf, EkfConfig, Motion, Referencer};
+use heapless::Deque;
 use stm32f4_sonar::{
-    credence, expect, judge, map_agrees, predict_params, Expected, SonarRing, Tim5Clock, MODULE_TIMING, RING_TIMING,
-    TRANSDUCERS,
+    credence, map_agrees, predict_params, Clock, EchoLevel, HostPort, SonarRing, Tim5Clock, MODULE_TIMING, RING_TIMING,
+    TRANSDUCERS, VERDICTS,
 };
 use stm32f4xx_hal::pac;
 use stm32f4xx_hal::prelude::*;
 use stm32f4xx_hal::rcc::Config;
+use stm32f4xx_hal::serial::SerialExt;
 
 /// The compiled office map (`echoloc-lab map import maps/office.geojson`),
 /// the same one the QEMU board runs; it stays in flash and is read in place.
 static BLOB: &Aligned<[u8]> = &Aligned(*include_bytes!("../../qemu-mps2-an386/office.map"));
 
-/// Where the robot starts in the office map (mm, rad): the pose estimate
-/// until a pose filter moves it.
-const START: Pose = Pose { x_mm: 4000.0, y_mm: 4000.0, heading_rad: 0.0 };
+/// Where the filter starts until the robot's computer sends `SetPose`:
+/// x, y (m), φ (rad) in the office map, and the standard deviations.
+const START: [f32; 3] = [4.0, 4.0, 0.0];
+const START_SIGMA: [f32; 3] = [0.1, 0.1, 0.05];
+
+/// Readings waiting for their odometry.
+const QUEUE: usize = 4;
 
 #[entry]
 fn main() -> ! {
@@ -52,12 +73,13 @@ fn main() -> ! {
 
     let gpioa = dp.GPIOA.split(&mut rcc);
     let gpiob = dp.GPIOB.split(&mut rcc);
+    let gpiod = dp.GPIOD.split(&mut rcc);
     let gpioe = dp.GPIOE.split(&mut rcc);
     let mut ok_led = gpiob.pb0.into_push_pull_output();
     let mut obstacle_led = gpiob.pb14.into_push_pull_output();
     let init = gpioe.pe6.into_push_pull_output();
     let binh = gpioe.pe7.into_push_pull_output();
-    let echo = gpioa.pa0.into_floating_input();
+    let echo = EchoLevel::new(gpioa.pa0.into_alternate::<2>());
     let addr = [
         gpioe.pe2.into_push_pull_output().erase_number(),
         gpioe.pe3.into_push_pull_output().erase_number(),
@@ -67,62 +89,134 @@ fn main() -> ! {
     let module = Module::new(init, echo, addr, &clock, MODULE_TIMING).with_binh(binh);
     let mut ring: SonarRing<'_> = Ring::new(module, Schedule::spread(), RING_TIMING);
 
+    let Ok(serial) = dp.USART3.serial((gpiod.pd8, gpiod.pd9), 115_200.bps(), &mut rcc) else {
+        panic!("USART3 at 115200 baud is refused");
+    };
+    let mut link = Link::new(HostPort::new(serial));
+
     let Ok(map) = MapView::new(&BLOB.0) else {
         panic!("the office map blob was refused");
     };
     let params = predict_params(map.buffer_mm());
     let net = credence();
-    let pose = START;
-
-    // What each transducer should read from the pose estimate.
-    let mut expected = [Expected::Unknown; TRANSDUCERS];
-    // What transducer `t` should read, into its slot of `expected`.
-    let refresh = |expected: &mut [Expected; TRANSDUCERS], t: u8| {
-        expected[usize::from(t)] = expect(&map, &pose, t, &params, &net).unwrap_or(Expected::Unknown);
+    let Ok(ekf) = Ekf::new(START, START_SIGMA, EkfConfig::DEFAULT) else {
+        panic!("the start pose is refused");
     };
-    let mut tally = VerdictCounts::default();
-    if let Some(t) = ring.schedule().transducer(0) {
-        refresh(&mut expected, t);
+    let mut controller = Controller::new(&map, &PIONEER16, params, &net, Referencer::new(ekf, VERDICTS));
+    let mut odometry = OdometrySync::<16>::new();
+    let mut queue: Deque<RingReading, QUEUE> = Deque::new();
+    let (mut refused, mut stale) = (0u32, 0u32);
+    let map_crc = echoloc::map::crc32(&BLOB.0);
+    defmt::info!("echoloc controller: {} pieces, map CRC {=u32:#010x}", map.piece_count(), map_crc);
+    let hello = FromController::Hello {
+        protocol: PROTOCOL_VERSION,
+        transducers: TRANSDUCERS as u8,
+        map_crc,
+        time_us: clock.now_us(),
+    };
+    if let Err(e) = link.send(&hello) {
+        defmt::warn!("link: {}", defmt::Debug2Format(&e));
     }
+
     loop {
-        let reading = match ring.poll() {
-            Ok(Some(r)) => r,
-            Ok(None) => continue,
-            // Pins here cannot fail (`Infallible`), and the ring is only
-            // polled; anything else is a driver bug: start the schedule again.
-            Err(Error::Pin(never)) => match never {},
-            Err(_) => {
-                let _ = ring.reset();
-                tally = VerdictCounts::default();
-                if let Some(t) = ring.schedule().transducer(0) {
-                    refresh(&mut expected, t);
+        // 1. The ring: a stamped edge first, then the schedule.
+        let reading = match clock.take_capture() {
+            // An edge outside a ping (a stale stamp) is no reading: `Idle`.
+            Some(stamp) => ring.echo_captured(stamp).ok(),
+            None => match ring.poll() {
+                Ok(r) => r,
+                Err(Error::Pin(never)) => match never {},
+                Err(e) => {
+                    defmt::warn!("ring: {}, restarting the schedule", e);
+                    let _ = ring.reset();
+                    None
                 }
-                continue;
-            }
+            },
         };
-        let verdict = judge(&reading.outcome, &expected[usize::from(reading.transducer)]);
-        tally.add(verdict);
-
-        // The ring is now in its ring-down gap: predict the transducer that
-        // fires next, from the pose estimate as it is now.
-        let next_slot = usize::from(reading.slot) + 1;
-        if let Some(n) = ring.schedule().transducer(next_slot % TRANSDUCERS) {
-            refresh(&mut expected, n);
+        if let Some(r) = reading {
+            if queue.is_full() {
+                // Four more readings and still no odometry for this one:
+                // judge it without motion rather than lose it.
+                if let Some(old) = queue.pop_front() {
+                    stale += 1;
+                    step(
+                        &mut controller,
+                        &mut link,
+                        &Motion { dx: 0.0, dy: 0.0, dphi: 0.0 },
+                        &old,
+                        (&mut ok_led, &mut obstacle_led),
+                    );
+                }
+            }
+            let _ = queue.push_back(r);
         }
 
-        if next_slot == TRANSDUCERS {
-            // A whole cycle: show it, start counting the next.
-            if map_agrees(&tally) {
-                ok_led.set_high();
-            } else {
-                ok_led.set_low();
+        // 2. The link: at most one message per pass.
+        match link.poll(16) {
+            Ok(Some(ToController::Odometry { time_us, x, y, theta })) => {
+                if odometry.push(OdometrySample { time_us, pose: [x, y, theta] }).is_err() {
+                    refused += 1;
+                }
             }
-            if tally.unknown_obstacle > 0 {
-                obstacle_led.set_high();
-            } else {
-                obstacle_led.set_low();
+            Ok(Some(ToController::SetPose { pose, sigma })) => match Ekf::new(pose, sigma, EkfConfig::DEFAULT) {
+                Ok(e) => controller.reset(e),
+                Err(_) => refused += 1,
+            },
+            Ok(Some(ToController::End)) => {
+                let status = FromController::Status {
+                    rx: link.rx_counts(),
+                    odometry_refused: refused,
+                    readings: controller.counts().readings,
+                    stale,
+                };
+                let _ = link.send(&status);
             }
-            tally = VerdictCounts::default();
+            Ok(None) => {}
+            Err(e) => defmt::warn!("link: {}", defmt::Debug2Format(&e)),
         }
+
+        // 3. The controller, only while a ping is in flight (its slot's time
+        // has come), so nothing here delays a firing.
+        let in_flight = ring.next_fire_us().is_some_and(|due| (clock.now_us().wrapping_sub(due) as i32) >= 0);
+        if in_flight {
+            if let Some(r) = queue.front().copied() {
+                if odometry.covers(r.fired_at_us) {
+                    let _ = queue.pop_front();
+                    let u = odometry.increment_to(r.fired_at_us).unwrap_or(Motion { dx: 0.0, dy: 0.0, dphi: 0.0 });
+                    step(&mut controller, &mut link, &u, &r, (&mut ok_led, &mut obstacle_led));
+                }
+            }
+        }
+    }
+}
+
+/// One reading through the controller; its report (and the cycle's, when
+/// it closed one) to the host; the LEDs per cycle.
+fn step<M, K, P>(
+    controller: &mut Controller<'_, M, K>,
+    link: &mut Link<P>,
+    u: &Motion,
+    r: &RingReading,
+    leds: (&mut impl embedded_hal::digital::OutputPin, &mut impl embedded_hal::digital::OutputPin),
+) where
+    M: MapSource + ?Sized,
+    K: echoloc::credence::Credence + ?Sized,
+    P: embedded_io::Read + embedded_io::ReadReady + embedded_io::Write,
+{
+    match controller.step(u, r) {
+        Ok(s) => {
+            if let Some(end) = &s.cycle_end {
+                let (ok_led, obstacle_led) = leds;
+                let _ = if map_agrees(&end.verdicts) { ok_led.set_high() } else { ok_led.set_low() };
+                let _ =
+                    if end.verdicts.unknown_obstacle > 0 { obstacle_led.set_high() } else { obstacle_led.set_low() };
+                let _ = link.send(&FromController::Cycle(CycleReport::from(end)));
+            }
+            let x = controller.state();
+            defmt::debug!("t{} {}: pose ({}, {}, {})", r.transducer, s.report.verdict, x[0], x[1], x[2]);
+            let report = ReadingReport::new(r, &s, x, controller.covariance(), controller.is_lost());
+            let _ = link.send(&FromController::Reading(report));
+        }
+        Err(e) => defmt::warn!("controller: {}", e),
     }
 }

@@ -100,6 +100,8 @@ fn main() -> ! {
                         }
                     }
                     Ok(Some(ToController::End)) => return Err(ReplayError::Odometry(OdometryError::NotYet)),
+                    // A replay starts where its scenario says; the STM32 board takes it.
+                    Ok(Some(ToController::SetPose { .. })) => {}
                     Ok(None) | Err(_) => {}
                 }
             }
@@ -116,13 +118,15 @@ fn main() -> ! {
     );
     let mut l = link.borrow_mut();
     let readings = result.as_ref().map_or(0, |s| s.counts.readings);
-    let status = FromController::Status { rx: l.rx_counts(), odometry_refused: refused.get(), readings };
+    let status = FromController::Status { rx: l.rx_counts(), odometry_refused: refused.get(), readings, stale: 0 };
     let _ = l.send(&status);
     let rx = l.rx_counts();
     hprintln!(
         "link: {} frames taken, {} dropped (overflow {}, cobs {}, short {}, crc {}, version {}, decode {}); {} odometry samples refused",
         rx.ok, rx.dropped(), rx.overflow, rx.cobs, rx.short, rx.crc, rx.version, rx.decode, refused.get()
     );
+    let (used, size) = qemu_mps2_an386::stack_high_water();
+    hprintln!("stack high-water mark: {} of {} bytes (the whole loop with the link)", used, size);
     let ok = match result {
         Ok(s) => {
             let h = scenario.header();
