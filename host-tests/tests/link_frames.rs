@@ -66,6 +66,7 @@ fn every_message_kind_round_trips() {
             rx: RxCounts { ok: 5, crc: 1, ..RxCounts::default() },
             odometry_refused: 2,
             readings: 99,
+            stale: 1,
         },
     ];
     for m in from {
