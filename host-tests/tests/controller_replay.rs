@@ -11,7 +11,7 @@
 //! - Mismatches are refused with typed errors: another map, another ring
 //!   timing, a record whose transducer the driver would not fire.
 
-use echoloc::controller::replay::{check, run, scenario_odometry, ReplayError, ReplaySetup, Score};
+use echoloc::controller::replay::{check, run, scenario_odometry, ReplayError, ReplaySetup, ReplaySummary, Score};
 use echoloc::credence::net::CredenceNet;
 use echoloc::driver::SpeedOfSound;
 use echoloc::map::{crc32, MapSource, MapView};
@@ -107,6 +107,21 @@ fn driver_path_equals_direct_loop_and_meets_the_bounds() {
     assert!(score.position_rmse_m < f64::from(header.bound_position_m));
 }
 
+/// `bytes` replayed through the driver with the scenario's own odometry.
+fn replay(bytes: &[u8], map: &MapView<'_>, setup: &ReplaySetup<16>) -> Result<ReplaySummary, ReplayError> {
+    let scenario = Scenario::parse(bytes).unwrap();
+    let bench = Bench::new(scenario, 1_000);
+    run::<_, _, 4, 16>(
+        &bench,
+        map,
+        &mounts(&scenario),
+        &CredenceNet::shipped(),
+        setup,
+        scenario_odometry,
+        |_, _, _, _| {},
+    )
+}
+
 /// The scenario rewritten with each record changed by `f`.
 fn rewritten(f: impl Fn(&mut Record)) -> Vec<u8> {
     let bytes = scenario_bytes();
@@ -128,20 +143,9 @@ fn truth_shifted_by_a_metre_fails_the_bounds() {
     let fx = Fixture::new();
     let map = MapView::new(fx.bytes()).unwrap();
     let bytes = rewritten(|r| r.truth[0] += 1.0);
-    let scenario = Scenario::parse(&bytes).unwrap();
     let setup = setup(&map);
-    let bench = Bench::new(scenario, 1_000);
-    check(&bench, crc32(fx.bytes()), &setup).unwrap();
-    let s = run::<_, _, 4, 16>(
-        &bench,
-        &map,
-        &mounts(&scenario),
-        &CredenceNet::shipped(),
-        &setup,
-        scenario_odometry,
-        |_, _, _, _| {},
-    )
-    .unwrap();
+    check(&Bench::new(Scenario::parse(&bytes).unwrap(), 1_000), crc32(fx.bytes()), &setup).unwrap();
+    let s = replay(&bytes, &map, &setup).unwrap();
     assert!(!s.passed && s.score.position_rmse_m > 0.9, "{s:?}");
 }
 
@@ -175,20 +179,9 @@ fn mismatches_are_refused() {
             r.transducer = (r.transducer + 1) % 16;
         }
     });
-    let scenario = Scenario::parse(&bytes).unwrap();
-    let bench = Bench::new(scenario, 1_000);
-    let e = run::<_, _, 4, 16>(
-        &bench,
-        &map,
-        &mounts(&scenario),
-        &CredenceNet::shipped(),
-        &setup,
-        scenario_odometry,
-        |_, _, _, _| {},
-    )
-    .unwrap_err();
+    let e = replay(&bytes, &map, &setup).unwrap_err();
     // The driver selected the schedule's transducer; the record says the next one.
-    let changed = bench.scenario().record(37).unwrap().transducer;
+    let changed = Scenario::parse(&bytes).unwrap().record(37).unwrap().transducer;
     let fault = BenchFault::Transducer { record: 37, expected: changed, selected: (changed + 15) % 16 };
     assert_eq!(e, ReplayError::Bench(fault));
 
@@ -198,17 +191,6 @@ fn mismatches_are_refused() {
             r.time_us += 7;
         }
     });
-    let scenario = Scenario::parse(&bytes).unwrap();
-    let bench = Bench::new(scenario, 1_000);
-    let e = run::<_, _, 4, 16>(
-        &bench,
-        &map,
-        &mounts(&scenario),
-        &CredenceNet::shipped(),
-        &setup,
-        scenario_odometry,
-        |_, _, _, _| {},
-    )
-    .unwrap_err();
+    let e = replay(&bytes, &map, &setup).unwrap_err();
     assert!(matches!(e, ReplayError::Bench(BenchFault::Schedule { record: 48, .. })), "{e:?}");
 }
