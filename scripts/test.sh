@@ -18,11 +18,12 @@ thumbs=(thumbv7em-none-eabihf thumbv6m-none-eabi)
 step "format"
 cargo fmt --all -- --check
 
-step "clippy: host crates (all targets), core on the thumb targets (with and without defmt), boards"
+step "clippy: host crates (all targets), core on the thumb targets (plain, defmt, async), boards"
 cargo clippy -q --all-targets -- -D warnings
 for t in "${thumbs[@]}"; do
   cargo clippy -q -p echoloc --target "$t" -- -D warnings
   cargo clippy -q -p echoloc --target "$t" --features defmt -- -D warnings
+  cargo clippy -q -p echoloc --target "$t" --features async,defmt -- -D warnings
 done
 cargo clippy -q -p qemu-mps2-an386 --target thumbv7em-none-eabihf -- -D warnings
 cargo clippy -q -p stm32f4-sonar --target thumbv7em-none-eabihf -- -D warnings
@@ -31,6 +32,7 @@ step "core builds for the thumb targets"
 for t in "${thumbs[@]}"; do
   cargo build -q -p echoloc --target "$t" --release
   cargo build -q -p echoloc --target "$t" --release --features defmt
+  cargo build -q -p echoloc --target "$t" --release --features async
 done
 
 step "boards build"

@@ -10,6 +10,7 @@
 //! | [`schedule`](Schedule) | the firing order that keeps neighbours apart in time |
 //! | [`ring`](Ring) | N transducers on fixed slots with EERUF's alternating delays and crosstalk check |
 //! | [`error`](Error) | `Error<E>` over the HAL's pin error, [`Fault`], [`ConfigError`] |
+//! | `asynch` (feature `async`) | `AsyncModule`, `AsyncRing`: the same module and ring over `embedded-hal-async`, awaiting ECHO and the next deadline |
 //!
 //! Nothing blocks: [`Ring::poll`] and [`Module::poll`] look once and return,
 //! a ping with no echo ends when its listening window has passed, and the
@@ -91,6 +92,8 @@
 //! assert_eq!(readings, 32);
 //! ```
 
+#[cfg(feature = "async")]
+mod asynch;
 mod clock;
 mod config;
 mod error;
@@ -100,6 +103,8 @@ mod ring;
 mod schedule;
 mod sound;
 
+#[cfg(feature = "async")]
+pub use asynch::{AsyncModule, AsyncRing};
 pub use clock::Clock;
 pub use config::{
     Eeruf, ModuleConfig, RingConfig, RingTiming, Timing, MAX_RANGE_LIMIT_MM, POLAROID_BLANKING_US, TRANSMIT_BURST_US,

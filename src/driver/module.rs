@@ -339,6 +339,28 @@ where
         (self.init, self.echo, self.binh, self.addr, self.clock)
     }
 
+    /// The ping in flight: when INIT rose, and whether a BINH rise is still
+    /// to come. `None` when idle.
+    #[cfg_attr(not(feature = "async"), allow(dead_code))]
+    pub(crate) fn listening(&self) -> Option<(u32, bool)> {
+        match self.phase {
+            Phase::Listening { fired_at, .. } => Some((fired_at, self.binh.is_some() && !self.binh_high)),
+            Phase::Idle => None,
+        }
+    }
+
+    /// The ECHO line, for a flavour of the driver that waits on it.
+    #[cfg_attr(not(feature = "async"), allow(dead_code))]
+    pub(crate) fn echo_mut(&mut self) -> &mut ECHO {
+        &mut self.echo
+    }
+
+    /// A pin failed while waiting on ECHO: stop as cleanly as the pins allow.
+    #[cfg_attr(not(feature = "async"), allow(dead_code))]
+    pub(crate) fn abort_pin(&mut self, e: E) -> Error<E> {
+        self.abort(e)
+    }
+
     /// The edge came `el` µs after the ping: classify it and stop.
     fn conclude(&mut self, el: u32, blanking_end: u32) -> Result<Echo, Error<E>> {
         let outcome = if el < blanking_end {

@@ -271,6 +271,18 @@ where
         self.module.cancel()
     }
 
+    /// Whether the current slot's ping is in flight.
+    #[cfg_attr(not(feature = "async"), allow(dead_code))]
+    pub(crate) fn in_flight(&self) -> bool {
+        matches!(self.state, State::Listening { .. })
+    }
+
+    /// The module, for a flavour of the driver that waits on its ECHO line.
+    #[cfg_attr(not(feature = "async"), allow(dead_code))]
+    pub(crate) fn module_mut(&mut self) -> &mut Module<INIT, ECHO, BINH, ADDR, CLK, A> {
+        &mut self.module
+    }
+
     /// Give the module back.
     pub fn release(self) -> Module<INIT, ECHO, BINH, ADDR, CLK, A> {
         self.module
