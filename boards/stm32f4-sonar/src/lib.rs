@@ -1,7 +1,8 @@
 //! What the STM32F429 sonar controller is made of: the wiring, the 1 MHz
-//! clock the driver runs on, the checked ring timing, one transducer's
-//! prediction, the comparison of a reading with it, and the fault and panic
-//! handlers. `main.rs` puts them together.
+//! clock the driver runs on and its ECHO capture, the host link's serial
+//! port, the checked ring timing, the prediction and verdict settings, and
+//! the fault and panic handlers. `main.rs` puts them together with the
+//! core's controller into the whole loop.
 //!
 //! # The board
 //!
@@ -10,7 +11,7 @@
 //! core runs at 168 MHz, APB1 at 42 MHz, so TIM2–TIM5 count at 84 MHz before
 //! their prescaler. One Polaroid 6500-class ranging module fires a 16-transducer
 //! ring through a 1-of-16 analogue multiplexer (the Pioneer ring,
-//! [`PIONEER16`]):
+//! `echoloc::predict::PIONEER16`):
 //!
 //! | signal | pin | notes |
 //! |---|---|---|
@@ -32,12 +33,12 @@
 //!
 //! The map is the compiled office map, read in place from flash through a
 //! `MapView` (validated once at boot): no copy of it in RAM, whatever its
-//! size. Static RAM is 4 bytes (`.bss`); flash 38 744 bytes (`.text` 33 580,
-//! `.rodata` 4 736 with the 2 676-byte map, vector table 428), by
-//! `llvm-size -A` on the release build. The stack takes the rest of the
-//! 192 KiB; the QEMU board measures about 9 KiB for a whole ring cycle
-//! (`metric stack_bytes`), which this board's one-transducer prediction
-//! ([`expect`]) does not exceed.
+//! size. By `llvm-size -A` on the release build: flash 68 712 bytes
+//! (`.text` 58 468, `.rodata` 9 760 with the 2 676-byte map, vector table
+//! 428, `.data` 56); static RAM 1 092 bytes (`.data` 56, `.bss` 12, and
+//! defmt-rtt's 1 024-byte buffer in `.uninit`). The stack takes the rest of
+//! the 192 KiB; the same loop with the host link peaks at 6 456 bytes on the
+//! QEMU board (`--bin link`, whole program).
 #![no_std]
 #![deny(unsafe_code)]
 #![deny(missing_docs)]
