@@ -98,3 +98,83 @@ fn poses_over_the_link_track_the_truth_and_every_bad_frame_is_counted() {
     assert!(ok == sent - corrupted || ok == sent - corrupted + 1, "{status}");
     assert_eq!(host["firmware_exit"], 0);
 }
+
+/// Odometry from stdin as JSON lines (what a robot's own logger or bridge
+/// would pipe in): the scenario's odometry composed here, independently of
+/// the lab's own composition, gives poses within the bounds too.
+#[test]
+fn odometry_from_stdin_drives_the_loop() {
+    use std::io::Write;
+    let elf = build_firmware();
+    let scn = root().join("boards/qemu-mps2-an386/depot.scn");
+    let bytes = std::fs::read(&scn).unwrap();
+    let s = Scenario::parse(&bytes).unwrap();
+    let t0 = s.records().next().unwrap().time_us;
+    let mut x = [0.0f64; 3];
+    let mut lines = String::new();
+    for r in s.records() {
+        let u = r.odometry.map(f64::from);
+        x = [x[0] + x[2].cos() * u[0] - x[2].sin() * u[1], x[1] + x[2].sin() * u[0] + x[2].cos() * u[1], x[2] + u[2]];
+        lines += &format!(
+            "{{\"time_us\":{},\"x\":{},\"y\":{},\"theta\":{}}}\n",
+            r.time_us - t0,
+            x[0],
+            x[1],
+            x[2].sin().atan2(x[2].cos())
+        );
+    }
+    let mut child = lab()
+        .args(["link", "--odometry-stdin", "--timeout-s", "300", "--qemu"])
+        .arg(&elf)
+        .arg("--scenario")
+        .arg(&scn)
+        .stdin(std::process::Stdio::piped())
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    child.stdin.take().unwrap().write_all(lines.as_bytes()).unwrap();
+    let o = child.wait_with_output().unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let out = String::from_utf8(o.stdout).unwrap();
+    let truth: Vec<[f32; 3]> = s.records().map(|r| r.truth).collect();
+    let poses: Vec<Vec<f64>> = out
+        .lines()
+        .filter_map(|l| serde_json::from_str::<serde_json::Value>(l).ok())
+        .filter_map(|v| {
+            v.get("Reading").map(|r| r["pose"].as_array().unwrap().iter().map(|x| x.as_f64().unwrap()).collect())
+        })
+        .collect();
+    assert_eq!(poses.len(), truth.len());
+    let p2: f64 = poses
+        .iter()
+        .zip(&truth)
+        .map(|(p, t)| (p[0] - f64::from(t[0])).powi(2) + (p[1] - f64::from(t[1])).powi(2))
+        .sum();
+    let rmse = (p2 / truth.len() as f64).sqrt();
+    assert!(rmse <= f64::from(s.header().bound_position_m), "position RMSE {rmse} m");
+}
+
+/// A bad odometry line is refused with its line number, before anything starts.
+#[test]
+fn a_bad_stdin_line_is_named() {
+    use std::io::Write;
+    for (input, expect) in [
+        ("{\"time_us\":0,\"x\":0,\"y\":0,\"theta\":0}\n{\"time_us\":10,\"x\":1}\n", "stdin line 2: no finite \"y\""),
+        ("not json\n", "stdin line 1"),
+        ("{\"time_us\":-5,\"x\":0,\"y\":0,\"theta\":0}\n", "stdin line 1: \"time_us\" must be an integer"),
+    ] {
+        let mut child = lab()
+            .args(["link", "--odometry-stdin", "--socket", "/nonexistent/echoloc.sock"])
+            .stdin(std::process::Stdio::piped())
+            .stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+        child.stdin.take().unwrap().write_all(input.as_bytes()).unwrap();
+        let o = child.wait_with_output().unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success() && err.contains(expect), "{input:?}: {err}");
+        assert!(o.stdout.is_empty());
+    }
+}
