@@ -2,6 +2,7 @@
 //! Units on the command line and in files are metres and degrees (DESIGN §7);
 //! output is JSON.
 
+mod bench;
 mod credence;
 mod link;
 mod map;
@@ -36,6 +37,8 @@ enum Cmd {
     /// Scenario files: replay one on the host through the same filters.
     #[command(subcommand)]
     Scenario(scenario::ScenarioCmd),
+    /// Benchmarks: echoloc against ray fans on grids and polygons, per window, with completeness and memory.
+    Bench(bench::BenchArgs),
     /// The host link: stream odometry to a controller (the QEMU firmware, or a socket) and print what it sends back as JSON lines.
     Link(link::LinkArgs),
     /// Credence net: leave-one-day-out evaluation against the Gaussian baseline, training, quantisation, figures.
@@ -74,6 +77,7 @@ fn run(cmd: Cmd) -> Result<String, map::LabError> {
         Cmd::Simulate(a) => simulate::simulate_cmd(&a),
         Cmd::Scenario(c) => scenario::run(c),
         Cmd::Link(a) => link::link_cmd(&a),
+        Cmd::Bench(a) => bench::bench_cmd(&a),
         Cmd::Train(a) => credence::train_cmd(&a).map_err(|e| map::LabError(e.to_string())),
     }
 }

@@ -116,8 +116,8 @@ fn a_map_beyond_the_old_ram_map_imports_and_validates() {
 
 #[test]
 fn a_map_beyond_the_compiler_capacity_is_refused() {
-    // More pieces than the host's compiler holds (16 384).
-    import_fails("huge.geojson", &squares(16_500), "exceeds the compiler's capacity");
+    // More pieces than the host's compiler holds (32 768).
+    import_fails("huge.geojson", &squares(33_000), "exceeds the compiler's capacity");
 }
 
 #[test]

@@ -95,11 +95,12 @@ impl MapSummary {
 
 /// The map the host compiles into: the firmware reads the compiled blob in
 /// place, so only flash limits it; this is a generous host-side bound
-/// (16 384 pieces; piece ids are `u16`, which no flash of this class
-/// outgrows: 65 536 pieces need about 8 MiB of compiled map).
-pub type CompileMap = Map<{ COMPILE_PIECES }, 262_144, 262_144, 524_288>;
-const COMPILE_PIECES: usize = 16_384;
-const COMPILE_VERTICES: usize = 262_144;
+/// (32 768 pieces, enough for the depot tiled 8 × 8; piece ids are `u16`,
+/// which no flash of this class outgrows: 65 536 pieces need about 8 MiB
+/// of compiled map).
+pub type CompileMap = Map<{ COMPILE_PIECES }, { COMPILE_VERTICES }, 262_144, 1_048_576>;
+const COMPILE_PIECES: usize = 32_768;
+const COMPILE_VERTICES: usize = 524_288;
 
 /// Builds the map from `shapes` and compiles it (blob version 2). The cell
 /// size starts at `cell_mm` and doubles until the grid fits. Errors name the

@@ -8,7 +8,7 @@
 //! firmware's `StandardMap` (buffers, grid) → blob. Nothing is written
 //! unless everything succeeded.
 
-mod build;
+pub mod build;
 mod contour;
 mod geojson;
 pub mod render;

@@ -1,0 +1,356 @@
+//! `echoloc-lab bench`: echoloc against the methods robots use today, for
+//! the same sonar windows (the nearest obstacle inside the cone within
+//! `R_max`, `predict --geometric`), side by side in one run:
+//!
+//! | method | representation | what it is |
+//! |---|---|---|
+//! | `bresenham_1deg`, `bresenham_0.25deg` | occupancy grid | a fan of rays by Bresenham's line, as ROS amcl's beam model casts each beam ([`grid::Grid::bresenham`]) |
+//! | `ray_marching_1deg` | grid + Euclidean distance transform | a fan by ray marching, range_libc's "RM" ([`grid::DistanceMap::march`]) |
+//! | `parry2d_1deg` | polygons in a `parry2d` compound (its BVH) | a fan of rays cast by parry2d |
+//! | `echoloc_exact` | compiled map (read in place) | the exact nearest obstacle point in the window: the reference |
+//! | `echoloc_pseudo_paths` | compiled map | the paper's pseudo-paths collect the pieces, then their nearest point |
+//! | `echoloc_full` | compiled map | the full prediction (δ gate, quantised credence net, occlusion), for reference |
+//!
+//! Time per window over every window, methods interleaved in rounds;
+//! completeness: the fraction of windows whose nearest obstacle a method
+//! finds within 20 mm of the exact answer (one cell diagonal more for grid
+//! methods), both "nothing in range" counting as found; memory of each
+//! method's own structures. The exact reference is checked first against
+//! an independent brute force over every piece on a sample of windows.
+
+pub mod brute;
+pub mod grid;
+mod plot;
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use clap::Args;
+use echoloc::credence::net::CredenceNet;
+use echoloc::geometry::{Point, Rect};
+use echoloc::map::{MapSource, MapView};
+use echoloc::predict::{nearest_in_window, predict, PredictParams};
+use echoloc::window::{collect_beacons, Strategy, Window, WindowParams};
+use parry2d_f64::math::{Pose, Vector};
+use parry2d_f64::query::{Ray, RayCast};
+use parry2d_f64::shape::{Compound, SharedShape};
+use serde_json::json;
+
+use crate::map::{read_compiled, read_shapes, view_of, AlignedBytes, LabError};
+
+/// `bench`.
+#[derive(Args)]
+pub struct BenchArgs {
+    /// The map: a compiled blob (.map), or a ROS map_server .yaml or .geojson (imported with a 100 mm buffer).
+    /// Give several for a scaling run (one result per map).
+    #[arg(long, required = true)]
+    map: Vec<PathBuf>,
+    /// With several maps: a PNG of time per window against the number of pieces, per method.
+    #[arg(long)]
+    plot: Option<PathBuf>,
+    /// Random free-space poses (one window each per half-angle).
+    #[arg(long, default_value_t = 2000)]
+    poses: usize,
+    /// Seed of the pose generator.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Timing rounds (methods interleaved in each).
+    #[arg(long, default_value_t = 5)]
+    rounds: usize,
+    /// Cell size of the occupancy grid the grid methods use, mm.
+    #[arg(long = "cell-mm", default_value_t = 50)]
+    cell_mm: u32,
+    /// Half-angles of the windows, degrees (comma-separated).
+    #[arg(long = "half-angles-deg", value_delimiter = ',', default_values_t = vec![15.0, 30.0])]
+    half_angles_deg: Vec<f64>,
+    /// One JSON object (the default prints the same, indented).
+    #[arg(long)]
+    json: bool,
+}
+
+/// The windows' reach, mm.
+pub const R_MAX_MM: u32 = 5_500;
+/// Completeness tolerance, m.
+const TOL_M: f64 = 0.020;
+
+/// One window: the sensor at `apex` looking along `heading`.
+#[derive(Clone, Copy, Debug)]
+pub struct Win {
+    pub apex: Point,
+    pub heading: f32,
+}
+
+impl Win {
+    pub fn origin_m(&self) -> (f64, f64) {
+        (f64::from(self.apex.x) / 1000.0, f64::from(self.apex.y) / 1000.0)
+    }
+}
+
+/// Free-space poses: inside the map's bounds, outside every buffered piece.
+fn poses(map: &MapView<'_>, n: usize, seed: u64) -> Vec<Win> {
+    let Some(b) = map.bounds() else { return Vec::new() };
+    let mut s = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1;
+    let mut next = move || {
+        s ^= s >> 12;
+        s ^= s << 25;
+        s ^= s >> 27;
+        s.wrapping_mul(0x2545_F491_4F6C_DD1D)
+    };
+    let mut out = Vec::new();
+    for _ in 0..n * 1000 {
+        if out.len() == n {
+            break;
+        }
+        let x = b.min.x + (next() % (b.max.x - b.min.x).max(1) as u64) as i32;
+        let y = b.min.y + (next() % (b.max.y - b.min.y).max(1) as u64) as i32;
+        let heading = (next() % 6_283_185) as f32 / 1e6 - std::f32::consts::PI;
+        let p = Point::new(x, y);
+        let mut free = true;
+        let _ = map.for_each_candidate(Rect::around(p), |piece| free &= !piece.buffered.tvector(p).is_inside());
+        if free {
+            out.push(Win { apex: p, heading });
+        }
+    }
+    out
+}
+
+/// A ray fan: `half` each side of `heading` in `step` (radians), both ends included.
+fn fan(heading: f64, half: f64, step: f64) -> impl Iterator<Item = (f64, f64)> {
+    let n = (half / step).round() as i64;
+    (-n..=n).map(move |k| {
+        let a = heading + k as f64 * step;
+        (a.cos(), a.sin())
+    })
+}
+
+fn min_opt(a: Option<f64>, b: Option<f64>) -> Option<f64> {
+    match (a, b) {
+        (Some(x), Some(y)) => Some(x.min(y)),
+        (x, None) => x,
+        (None, y) => y,
+    }
+}
+
+/// The parry2d peer: the true pieces as convex polygons (segments for walls)
+/// in one compound, which keeps its own BVH.
+struct ParryScene {
+    compound: Option<Compound>,
+    bytes: usize,
+}
+
+impl ParryScene {
+    fn new(outlines: &[Vec<(f64, f64)>]) -> Self {
+        let mut bytes = 0;
+        let parts: Vec<(Pose, SharedShape)> = outlines
+            .iter()
+            .filter_map(|pts| {
+                let s = match pts.as_slice() {
+                    [a, b] => Some(SharedShape::segment(Vector::new(a.0, a.1), Vector::new(b.0, b.1))),
+                    _ => SharedShape::convex_polyline(pts.iter().map(|p| Vector::new(p.0, p.1)).collect()),
+                }?;
+                // Points and normals (2 × 16 B a vertex), the shape and its Arc.
+                bytes += pts.len() * 32 + 64;
+                Some((Pose::IDENTITY, s))
+            })
+            .collect();
+        // The BVH: about two nodes per leaf, an AABB and links each.
+        bytes += parts.len() * 2 * 48;
+        Self { compound: (!parts.is_empty()).then(|| Compound::new(parts)), bytes }
+    }
+
+    fn cast(&self, o: (f64, f64), d: (f64, f64), max: f64) -> Option<f64> {
+        let c = self.compound.as_ref()?;
+        let ray = Ray::new(Vector::new(o.0, o.1), Vector::new(d.0, d.1));
+        c.cast_local_ray(&ray, max, true)
+    }
+}
+
+type Method<'a> = Box<dyn Fn(&Win) -> Option<f64> + 'a>;
+
+/// The map as the bench reads it: the compiled bytes, aligned.
+fn load(path: &std::path::Path) -> Result<AlignedBytes, LabError> {
+    if path.extension().is_some_and(|e| e == "map") {
+        return read_compiled(path);
+    }
+    let shapes = read_shapes(path)?;
+    let (blob, _) =
+        crate::map::build::build_map(&shapes, 100, 500).map_err(|e| LabError(format!("{}: {e}", path.display())))?;
+    Ok(AlignedBytes::new(&blob))
+}
+
+pub fn bench_cmd(a: &BenchArgs) -> Result<String, LabError> {
+    if a.poses == 0 || a.rounds == 0 || a.cell_mm == 0 {
+        return Err(LabError("--poses, --rounds and --cell-mm must be positive".into()));
+    }
+    if a.half_angles_deg.is_empty() || a.half_angles_deg.iter().any(|h| !(h.is_finite() && *h > 0.0 && *h < 90.0)) {
+        return Err(LabError("--half-angles-deg: each in (0, 90)".into()));
+    }
+    if let Some(p) = &a.plot {
+        if p.extension().is_none_or(|e| e != "png") {
+            return Err(LabError(format!("--plot {}: must end in .png", p.display())));
+        }
+    }
+    let results = a.map.iter().map(|m| bench_map(m, a)).collect::<Result<Vec<_>, _>>()?;
+    if let Some(p) = &a.plot {
+        let png = plot::scaling(&results);
+        std::fs::write(p, png).map_err(|e| LabError(format!("--plot {}: {e}", p.display())))?;
+    }
+    let v =
+        if results.len() == 1 { results.into_iter().next().unwrap_or_default() } else { json!({ "maps": results }) };
+    Ok(if a.json { v.to_string() } else { serde_json::to_string_pretty(&v).unwrap_or_default() })
+}
+
+fn bench_map(path: &std::path::Path, a: &BenchArgs) -> Result<serde_json::Value, LabError> {
+    let aligned = load(path)?;
+    let map = view_of(&aligned, path)?;
+    let outlines: Vec<Vec<(f64, f64)>> = map
+        .pieces_iter()
+        .map(|p| p.shape.vertices().iter().map(|v| (f64::from(v.x) / 1000.0, f64::from(v.y) / 1000.0)).collect())
+        .collect();
+    let wins = poses(&map, a.poses, a.seed);
+    if wins.len() < a.poses {
+        return Err(LabError(format!("only {} free poses found", wins.len())));
+    }
+    let t = Instant::now();
+    let res = f64::from(a.cell_mm) / 1000.0;
+    let grid = grid::Grid::rasterise(&outlines, res, 2);
+    let dist = grid::DistanceMap::of(&grid);
+    let parry = ParryScene::new(&outlines);
+    let setup_s = t.elapsed().as_secs_f64();
+    let net = CredenceNet::shipped();
+    let r_max = f64::from(R_MAX_MM) / 1000.0;
+    let diag = res * std::f64::consts::SQRT_2;
+
+    let mut methods_json = Vec::new();
+    let mut checks = Vec::new();
+    for &half_deg in &a.half_angles_deg {
+        let wp = WindowParams {
+            r_min_mm: 0,
+            r_max_mm: R_MAX_MM,
+            half_angle_deg: half_deg as f32,
+            tb_mm: map.buffer_mm(),
+            ..WindowParams::MARGE
+        };
+        wp.validate().map_err(|e| LabError(format!("window: {e:?}")))?;
+        let params = PredictParams::new(WindowParams { r_min_mm: WindowParams::MARGE.r_min_mm, ..wp });
+        let place = |w: &Win| Window::place(&wp, w.apex, w.heading).ok();
+        let half = half_deg.to_radians();
+        let exact = |w: &Win| -> Option<f64> {
+            let win = place(w)?;
+            nearest_in_window(&map, &win).ok().flatten().map(|n| n.range_mm / 1000.0)
+        };
+        // The reference, then its check against the brute force.
+        let reference: Vec<Option<f64>> = wins.iter().map(exact).collect();
+        checks.push(brute::check(&outlines, &wins, &reference, half, r_max, half_deg));
+
+        let methods: Vec<(&str, bool, usize, Method<'_>)> = vec![
+            (
+                "bresenham_1deg",
+                true,
+                grid.bytes(),
+                Box::new(|w: &Win| {
+                    fan(f64::from(w.heading), half, 1f64.to_radians())
+                        .fold(None, |b, d| min_opt(b, grid.bresenham(w.origin_m(), d, r_max)))
+                }),
+            ),
+            (
+                "bresenham_0.25deg",
+                true,
+                grid.bytes(),
+                Box::new(|w: &Win| {
+                    fan(f64::from(w.heading), half, 0.25f64.to_radians())
+                        .fold(None, |b, d| min_opt(b, grid.bresenham(w.origin_m(), d, r_max)))
+                }),
+            ),
+            (
+                "ray_marching_1deg",
+                true,
+                grid.bytes() + dist.bytes(),
+                Box::new(|w: &Win| {
+                    fan(f64::from(w.heading), half, 1f64.to_radians())
+                        .fold(None, |b, d| min_opt(b, dist.march(&grid, w.origin_m(), d, r_max)))
+                }),
+            ),
+            (
+                "parry2d_1deg",
+                false,
+                parry.bytes,
+                Box::new(|w: &Win| {
+                    fan(f64::from(w.heading), half, 1f64.to_radians())
+                        .fold(None, |b, d| min_opt(b, parry.cast(w.origin_m(), d, r_max)))
+                }),
+            ),
+            ("echoloc_exact", false, aligned.bytes().len(), Box::new(exact)),
+            (
+                "echoloc_pseudo_paths",
+                false,
+                aligned.bytes().len(),
+                Box::new(|w: &Win| {
+                    let win = place(w)?;
+                    let mut ids: heapless::Vec<u16, 512> = heapless::Vec::new();
+                    collect_beacons(&map, &win, Strategy::PseudoPaths, &mut ids).ok()?;
+                    ids.iter()
+                        .filter_map(|&id| map.piece(id).and_then(|p| win.sector.nearest(p.shape)))
+                        .map(|(d, _)| d / 1000.0)
+                        .fold(None, |b, d| min_opt(b, Some(d)))
+                }),
+            ),
+            (
+                "echoloc_full",
+                false,
+                aligned.bytes().len(),
+                Box::new(|w: &Win| {
+                    let win = Window::place(&params.window, w.apex, w.heading).ok()?;
+                    predict(&map, &win, &params, &net).ok()?.0.map(|p| f64::from(p.range_mm) / 1000.0)
+                }),
+            ),
+        ];
+        // Completeness (untimed), then time in rounds, methods interleaved.
+        let mut found = vec![0usize; methods.len()];
+        for (k, (_, is_grid, _, f)) in methods.iter().enumerate() {
+            let tol = TOL_M + if *is_grid { diag } else { 0.0 };
+            found[k] = wins
+                .iter()
+                .zip(&reference)
+                .filter(|(w, r)| match (f(w), **r) {
+                    (None, None) => true,
+                    (Some(m), Some(r)) => (m - r).abs() <= tol,
+                    _ => false,
+                })
+                .count();
+        }
+        let mut ns = vec![0f64; methods.len()];
+        let mut sink = 0.0;
+        for round in 0..a.rounds {
+            for i in 0..methods.len() {
+                let k = (i + round) % methods.len();
+                let f = &methods[k].3;
+                let t0 = Instant::now();
+                for w in &wins {
+                    sink += f(std::hint::black_box(w)).unwrap_or(0.0);
+                }
+                ns[k] += t0.elapsed().as_nanos() as f64;
+            }
+        }
+        std::hint::black_box(sink);
+        let per = |k: usize| ns[k] / (a.rounds * wins.len()) as f64;
+        let full = methods.iter().position(|m| m.0 == "echoloc_full").map_or(1.0, per);
+        for (k, (name, _, bytes, _)) in methods.iter().enumerate() {
+            let completeness = (*name != "echoloc_full").then(|| round4(found[k] as f64 / wins.len() as f64));
+            methods_json.push(json!({
+                "name": name, "half_angle_deg": half_deg,
+                "ns_per_window": per(k).round(), "ratio_to_echoloc": round4(per(k) / full),
+                "completeness": completeness, "bytes": bytes,
+            }));
+        }
+    }
+    Ok(json!({
+        "map": path.display().to_string(), "pieces": map.piece_count(), "windows_per_half_angle": wins.len(),
+        "rounds": a.rounds, "cell_mm": a.cell_mm, "grid": [grid.w, grid.h], "r_max_m": r_max,
+        "setup_s": round4(setup_s), "reference_check": checks, "methods": methods_json,
+    }))
+}
+
+fn round4(v: f64) -> f64 {
+    (v * 1e4).round() / 1e4
+}

@@ -1,0 +1,81 @@
+//! `echoloc-lab bench` end to end on the real depot map (a small run: the
+//! timings of a test mean nothing, what is checked is what the run says
+//! about correctness): the exact reference agrees with the brute force, the
+//! reference is complete by definition and the other methods are measured
+//! against it, every method reports its memory, and bad arguments are
+//! refused before any work.
+
+mod common;
+
+use common::{lab, root};
+
+fn run(args: &[&str]) -> serde_json::Value {
+    let o = lab().args(args).output().unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    serde_json::from_slice(&o.stdout).unwrap()
+}
+
+#[test]
+fn depot_bench_reports_every_method_against_a_checked_reference() {
+    let map = root().join("boards/qemu-mps2-an386/depot.map");
+    let v = run(&["bench", "--map", map.to_str().unwrap(), "--poses", "300", "--rounds", "1", "--json"]);
+    assert_eq!(v["pieces"], 428);
+    for c in v["reference_check"].as_array().unwrap() {
+        let (n, agree, grazing) =
+            (c["sampled"].as_u64().unwrap(), c["agree"].as_u64().unwrap(), c["boundary_grazing"].as_u64().unwrap());
+        assert!(n >= 300 && agree + grazing == n && grazing <= n / 100, "{c}");
+    }
+    let methods = v["methods"].as_array().unwrap();
+    let names = [
+        "bresenham_1deg",
+        "bresenham_0.25deg",
+        "ray_marching_1deg",
+        "parry2d_1deg",
+        "echoloc_exact",
+        "echoloc_pseudo_paths",
+        "echoloc_full",
+    ];
+    assert_eq!(methods.len(), 2 * names.len());
+    let blob = std::fs::metadata(&map).unwrap().len();
+    let grid = v["grid"].as_array().unwrap().iter().map(|x| x.as_u64().unwrap()).product::<u64>();
+    for m in methods {
+        let name = m["name"].as_str().unwrap();
+        assert!(names.contains(&name), "{m}");
+        assert!(m["ns_per_window"].as_f64().unwrap() > 0.0, "{m}");
+        let bytes = m["bytes"].as_u64().unwrap();
+        match name {
+            n if n.starts_with("echoloc") => assert_eq!(bytes, blob),
+            n if n.starts_with("bresenham") => assert_eq!(bytes, grid),
+            "ray_marching_1deg" => assert_eq!(bytes, 5 * grid, "grid bytes and an f32 distance per cell"),
+            _ => assert!(bytes > 0),
+        }
+        let c = m["completeness"].as_f64();
+        match name {
+            "echoloc_exact" => assert_eq!(c, Some(1.0)),
+            "echoloc_full" => assert_eq!(c, None, "the full prediction answers another question"),
+            // Fans miss obstacles between their rays; the pseudo-paths too.
+            _ => assert!(c.is_some_and(|c| c > 0.8 && c < 1.0), "{m}"),
+        }
+    }
+    // The finer Bresenham fan costs more than the coarse one.
+    let ns = |n: &str, h: f64| {
+        methods.iter().find(|m| m["name"] == n && m["half_angle_deg"] == h).unwrap()["ns_per_window"].as_f64().unwrap()
+    };
+    assert!(ns("bresenham_0.25deg", 30.0) > ns("bresenham_1deg", 30.0));
+}
+
+#[test]
+fn bad_arguments_are_refused() {
+    let map = root().join("boards/qemu-mps2-an386/depot.map");
+    let m = map.to_str().unwrap();
+    for (args, expect) in [
+        (vec!["bench", "--map", m, "--poses", "0"], "must be positive"),
+        (vec!["bench", "--map", m, "--half-angles-deg", "95"], "each in (0, 90)"),
+        (vec!["bench", "--map", m, "--plot", "x.svg"], "must end in .png"),
+        (vec!["bench", "--map", "/nonexistent.map"], "nonexistent"),
+    ] {
+        let o = lab().args(&args).output().unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success() && err.contains(expect), "{args:?}: {err}");
+    }
+}
