@@ -79,6 +79,9 @@ bash scripts/replay-checks.sh
 step "big maps (issue #11 item 5): the depot tiled 1x1, 3x2 and 4x4, imported and run from a flash partition"
 bash scripts/big-maps.sh
 
+step "the benchmark's windows on the M4 (issue #13): answers equal the host's, instructions per window"
+bash scripts/bench-m4.sh 300
+
 step "docs"
 RUSTDOCFLAGS="-D warnings" cargo doc -q --no-deps
 RUSTDOCFLAGS="-D warnings" cargo doc -q --no-deps -p qemu-mps2-an386 -p stm32f4-sonar --target thumbv7em-none-eabihf

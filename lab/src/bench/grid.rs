@@ -69,6 +69,18 @@ impl Grid {
         self.cells[j as usize * self.w + i as usize] != 0
     }
 
+    /// The cells as bits, row-major, bit `k % 8` of byte `k / 8` for cell
+    /// `k = j·w + i` (for the firmware's copy of the grid).
+    pub fn packed_bits(&self) -> Vec<u8> {
+        let mut out = vec![0u8; self.cells.len().div_ceil(8)];
+        for (k, &c) in self.cells.iter().enumerate() {
+            if c != 0 {
+                out[k / 8] |= 1 << (k % 8);
+            }
+        }
+        out
+    }
+
     /// Bytes of the grid (one per cell, as a ROS occupancy grid).
     pub fn bytes(&self) -> usize {
         self.cells.len()

@@ -19,6 +19,7 @@
 //! an independent brute force over every piece on a sample of windows.
 
 pub mod brute;
+mod export;
 pub mod grid;
 mod plot;
 
@@ -66,6 +67,11 @@ pub struct BenchArgs {
     /// One JSON object (the default prints the same, indented).
     #[arg(long)]
     json: bool,
+    /// Writes the first map's windows at the first half-angle, with the
+    /// host's exact and 1° Bresenham answers and the grid, for the
+    /// firmware's `--bin bench_windows` (docs/benchmarks.md).
+    #[arg(long = "export-windows")]
+    export_windows: Option<PathBuf>,
 }
 
 /// The windows' reach, mm.
@@ -190,7 +196,12 @@ pub fn bench_cmd(a: &BenchArgs) -> Result<String, LabError> {
             return Err(LabError(format!("--plot {}: must end in .png", p.display())));
         }
     }
-    let results = a.map.iter().map(|m| bench_map(m, a)).collect::<Result<Vec<_>, _>>()?;
+    let results = a
+        .map
+        .iter()
+        .enumerate()
+        .map(|(i, m)| bench_map(m, a, if i == 0 { a.export_windows.as_deref() } else { None }))
+        .collect::<Result<Vec<_>, _>>()?;
     if let Some(p) = &a.plot {
         let png = plot::scaling(&results);
         std::fs::write(p, png).map_err(|e| LabError(format!("--plot {}: {e}", p.display())))?;
@@ -200,7 +211,11 @@ pub fn bench_cmd(a: &BenchArgs) -> Result<String, LabError> {
     Ok(if a.json { v.to_string() } else { serde_json::to_string_pretty(&v).unwrap_or_default() })
 }
 
-fn bench_map(path: &std::path::Path, a: &BenchArgs) -> Result<serde_json::Value, LabError> {
+fn bench_map(
+    path: &std::path::Path,
+    a: &BenchArgs,
+    export: Option<&std::path::Path>,
+) -> Result<serde_json::Value, LabError> {
     let aligned = load(path)?;
     let map = view_of(&aligned, path)?;
     let outlines: Vec<Vec<(f64, f64)>> = map
@@ -305,6 +320,10 @@ fn bench_map(path: &std::path::Path, a: &BenchArgs) -> Result<serde_json::Value,
                 }),
             ),
         ];
+        if let (Some(out), true) = (export, half_deg == a.half_angles_deg[0]) {
+            let bres: Vec<Option<f64>> = wins.iter().map(|w| (methods[0].3)(w)).collect();
+            export::write(out, &wins, &reference, &bres, &grid, half_deg, &aligned)?;
+        }
         // Completeness (untimed), then time in rounds, methods interleaved.
         let mut found = vec![0usize; methods.len()];
         for (k, (_, is_grid, _, f)) in methods.iter().enumerate() {

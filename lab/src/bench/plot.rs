@@ -36,7 +36,7 @@ pub fn scaling(results: &[Value]) -> Vec<u8> {
     });
     let (lx0, lx1) = (x0.log10().floor(), x1.log10().ceil().max(x0.log10().floor() + 1.0));
     let (ly0, ly1) = (y0.log10().floor(), y1.log10().ceil().max(y0.log10().floor() + 1.0));
-    let (w, h, px, py, pw, ph) = (1100i64, 720i64, 110i64, 70i64, 900i64, 520i64);
+    let (w, h, px, py, pw, ph) = (1140i64, 720i64, 150i64, 70i64, 900i64, 520i64);
     let mut c = Canvas::new(w as usize, h as usize);
     c.text(px, 20, &format!("TIME PER WINDOW AGAINST MAP SIZE (HALF-ANGLE {half} DEG)"), 3, BLACK);
     let to_px = |x: f64, y: f64| {
