@@ -355,9 +355,9 @@ fn bad_ros_maps_fail_clearly_and_write_nothing() {
     over.extend([0u8, 50, 200, 100]);
     ros_fails("over-maxval", YAML, Some(("m.pgm", &over)), &["image:", "pixel 2 = 200 exceeds maxval 100"]);
     ros_fails("lying-p2", YAML, Some(("m.pgm", b"P2\n16000 16000\n255\n0 0 0\n")), &["image:", "P2 data: pixel 3"]);
-    // Larger than the compiler's capacity: 17 161 separate occupied cells.
-    let dots = pgm(262, 262, |c, r| if c % 2 == 0 && r % 2 == 0 { 0 } else { 254 });
-    ros_fails("capacity", YAML, Some(("m.pgm", &dots)), &["exceeds the compiler's capacity", "17161 obstacles"]);
+    // Larger than the compiler's capacity (32 768): 34 596 separate occupied cells.
+    let dots = pgm(372, 372, |c, r| if c % 2 == 0 && r % 2 == 0 { 0 } else { 254 });
+    ros_fails("capacity", YAML, Some(("m.pgm", &dots)), &["exceeds the compiler's capacity", "34596 obstacles"]);
 }
 
 #[test]
