@@ -82,6 +82,9 @@ bash scripts/big-maps.sh
 step "the benchmark's windows on the M4 (issue #13): answers equal the host's, instructions per window"
 bash scripts/bench-m4.sh 300
 
+step "fuzzing (issue #14): every core input path for a short bounded time (installs nightly and cargo-fuzz when absent)"
+bash scripts/fuzz.sh 15
+
 step "docs"
 RUSTDOCFLAGS="-D warnings" cargo doc -q --no-deps
 RUSTDOCFLAGS="-D warnings" cargo doc -q --no-deps -p qemu-mps2-an386 -p stm32f4-sonar --target thumbv7em-none-eabihf

@@ -17,7 +17,7 @@ mod oracle;
 
 use std::f32::consts::PI as PI32;
 
-use echoloc::referencing::{Ekf, EkfConfig, Motion, MountM, Target, Update};
+use echoloc::referencing::{Ekf, EkfConfig, EkfError, Motion, MountM, Target, Update};
 use oracle::*;
 
 const CFG: EkfConfig = EkfConfig::DEFAULT;
@@ -647,4 +647,24 @@ fn lost_inflation_widens_the_gate_until_the_filter_finds_the_pose() {
         (x[0] as f64 - truth[0]).abs() < 0.01 && (x[1] as f64 - truth[1]).abs() < 0.01 && x[2].abs() < 0.01,
         "{x:?}"
     );
+}
+
+/// Found by `scripts/fuzz.sh` (target `predict_ekf`, 2026-11-24): a start
+/// pose at 2.6·10²⁰ m with a standard deviation as large was accepted, and
+/// the filter's state went non-finite a few readings later. Positions
+/// beyond the map's coordinate range are now refused, at the start, by an
+/// odometry step and by an update, each leaving the filter as it was.
+#[test]
+fn positions_beyond_the_map_range_are_refused_and_change_nothing() {
+    use echoloc::referencing::ekf::MAX_POSITION_M;
+    let huge = 2.598_459e20f32;
+    assert_eq!(Ekf::new([huge; 3], [huge; 3], EkfConfig::DEFAULT).unwrap_err(), EkfError::OutOfRange);
+    assert_eq!(Ekf::new([0.0, MAX_POSITION_M * 1.01, 0.0], [0.1; 3], EkfConfig::DEFAULT).unwrap_err(), EkfError::OutOfRange);
+    // A huge variance alone is clamped, not refused.
+    let mut e = Ekf::new([1.0, 2.0, 0.3], [huge, 0.1, 0.1], EkfConfig::DEFAULT).unwrap();
+    assert!(e.covariance().iter().flatten().all(|v| v.is_finite()));
+    let (x, p) = (e.state(), e.covariance());
+    assert_eq!(e.predict(&Motion { dx: 3.0e6, dy: 0.0, dphi: 0.0 }), Err(EkfError::OutOfRange));
+    assert_eq!((e.state(), e.covariance()), (x, p), "a refused step changes nothing");
+    assert!(e.predict(&Motion { dx: 0.5, dy: 0.0, dphi: 0.1 }).is_ok());
 }

@@ -95,6 +95,17 @@ impl EkfConfig {
 pub enum EkfError {
     /// A non-finite or negative number where a finite one is needed.
     NotFinite,
+    /// A position beyond ±[`MAX_POSITION_M`], where no map coordinate
+    /// reaches: refused, the state left as it was.
+    OutOfRange,
+}
+
+/// The largest position the filter holds, m: the map's coordinate range
+/// (`geometry::COORD_MAX`, 2³⁰ − 1 mm ≈ 1 074 km) rounded down.
+pub const MAX_POSITION_M: f32 = 1.0e6;
+
+fn in_range(x: &[f32; 3]) -> bool {
+    x.iter().all(|v| v.is_finite()) && x[0].abs() <= MAX_POSITION_M && x[1].abs() <= MAX_POSITION_M
 }
 
 /// What one range update did.
@@ -172,6 +183,9 @@ impl Ekf {
         if !x.iter().chain(sigma.iter()).all(|v| v.is_finite()) || sigma.iter().any(|&s| s < 0.0) {
             return Err(EkfError::NotFinite);
         }
+        if !in_range(&x) {
+            return Err(EkfError::OutOfRange);
+        }
         let mut p = [[0.0; 3]; 3];
         for i in 0..3 {
             p[i][i] = (sigma[i] * sigma[i]).clamp(cfg.min_var[i], cfg.max_var[i]);
@@ -210,6 +224,9 @@ impl Ekf {
             return Err(EkfError::NotFinite);
         }
         let (next, f, g) = compose(&self.x, u);
+        if !in_range(&next) {
+            return Err(EkfError::OutOfRange);
+        }
         let d = sqrt(u.dx * u.dx + u.dy * u.dy);
         let turn = libm::fabsf(u.dphi);
         let c = &self.cfg;
@@ -275,15 +292,22 @@ impl Ekf {
             }
         }
         let a = mul_t(&mul(&ikh, &self.p), &ikh);
+        let mut next = self.x;
+        for (xi, ki) in next.iter_mut().zip(k) {
+            *xi += ki * nu;
+        }
+        next[2] = wrap(next[2]);
+        if !in_range(&next) || !a.iter().flatten().all(|v| v.is_finite()) {
+            // Overflow on absurd inputs: refuse the reading, keep the filter.
+            self.cycle.accepted = self.cycle.accepted.saturating_sub(1);
+            return Update::Unusable;
+        }
         for i in 0..3 {
             for j in 0..3 {
                 self.p[i][j] = a[i][j] + k[i] * s2 * k[j];
             }
         }
-        for (xi, ki) in self.x.iter_mut().zip(k) {
-            *xi += ki * nu;
-        }
-        self.x[2] = wrap(self.x[2]);
+        self.x = next;
         self.condition();
         Update::Accepted { innovation: nu, nis }
     }
