@@ -35,7 +35,8 @@ fuzz_target!(|data: &[u8]| {
         let u = Motion { dx: f32_at(data, b), dy: f32_at(data, b + 1), dphi: f32_at(data, b + 2) };
         let _ = r.odometry(&u);
         let raw = f32_at(data, b + 3);
-        let reading = if raw.is_finite() && raw >= 0.0 { Reading::Echo { range_mm: raw as u32 } } else { Reading::NoEcho };
+        let reading =
+            if raw.is_finite() && raw >= 0.0 { Reading::Echo { range_mm: raw as u32 } } else { Reading::NoEcho };
         let _ = r.reading(&map, &PIONEER16[k % 16], &params, &net, reading);
         if k % 16 == 15 {
             let _ = r.end_cycle();
