@@ -659,7 +659,10 @@ fn positions_beyond_the_map_range_are_refused_and_change_nothing() {
     use echoloc::referencing::ekf::MAX_POSITION_M;
     let huge = 2.598_459e20f32;
     assert_eq!(Ekf::new([huge; 3], [huge; 3], EkfConfig::DEFAULT).unwrap_err(), EkfError::OutOfRange);
-    assert_eq!(Ekf::new([0.0, MAX_POSITION_M * 1.01, 0.0], [0.1; 3], EkfConfig::DEFAULT).unwrap_err(), EkfError::OutOfRange);
+    assert_eq!(
+        Ekf::new([0.0, MAX_POSITION_M * 1.01, 0.0], [0.1; 3], EkfConfig::DEFAULT).unwrap_err(),
+        EkfError::OutOfRange
+    );
     // A huge variance alone is clamped, not refused.
     let mut e = Ekf::new([1.0, 2.0, 0.3], [huge, 0.1, 0.1], EkfConfig::DEFAULT).unwrap();
     assert!(e.covariance().iter().flatten().all(|v| v.is_finite()));
