@@ -3,8 +3,8 @@
 //! `no_std` firmware library for the microcontroller that drives a mobile
 //! robot's sonar ring. It predicts what every transducer should read from the
 //! robot's pose and a polygon map, rates each prediction, compares it with the
-//! real echo, and corrects the pose (Allen et al., *Autonomous Mobile Robot
-//! Self-Referencing with Sensor Windows and Neural Networks*).
+//! real echo, and corrects the pose, following the paper *Autonomous Mobile Robot
+//! Self-Referencing with Sensor Windows and Neural Networks*.
 //!
 //! Its modules:
 //!
