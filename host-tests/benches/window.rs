@@ -36,6 +36,8 @@ fn bench(c: &mut Criterion) {
         let wp = WindowParams { r_min_mm: 0, half_angle_deg: half, tb_mm: map.buffer_mm(), ..WindowParams::MARGE };
         let params = PredictParams::new(WindowParams { r_min_mm: WindowParams::MARGE.r_min_mm, ..wp });
         let geo: Vec<Window> = apexes.iter().map(|&(p, h)| Window::place(&wp, p, h).unwrap()).collect();
+        let paths: Vec<Window> =
+            apexes.iter().map(|&(p, h)| Window::place_for(&wp, p, h, Strategy::PseudoPaths).unwrap()).collect();
         let full: Vec<Window> = apexes.iter().map(|&(p, h)| Window::place(&params.window, p, h).unwrap()).collect();
         let mut g = c.benchmark_group(format!("depot_window_{half}deg"));
         g.bench_function("exact_nearest", |bn| {
@@ -48,7 +50,8 @@ fn bench(c: &mut Criterion) {
         g.bench_function("pseudo_path_collection", |bn| {
             let mut ids: heapless::Vec<u16, 512> = heapless::Vec::new();
             bn.iter(|| {
-                geo.iter()
+                paths
+                    .iter()
                     .map(|w| collect_beacons(&map, black_box(w), Strategy::PseudoPaths, &mut ids).unwrap().candidates)
                     .sum::<u32>()
             })

@@ -54,7 +54,7 @@ fn run_wide(m: &M, k: &impl Credence) -> Option<Prediction> {
 }
 
 fn run_with(m: &M, k: &impl Credence, prm: PredictParams) -> Option<Prediction> {
-    let w = Window::place(&prm.window, p(0, 0), 0.0).unwrap();
+    let w = Window::place_for(&prm.window, p(0, 0), 0.0, Strategy::PseudoPaths).unwrap();
     let (a, _) = predict(m, &w, &prm, k).unwrap();
     // Both collection strategies must agree on these maps.
     let pp = PredictParams { strategy: Strategy::PseudoPaths, ..prm };
@@ -258,5 +258,46 @@ fn headings_of_many_turns_and_windows_beyond_the_coordinates() {
     let _ = predict(&*m, &w, &prm, &CRISP).unwrap();
     // A window whose corner paths would leave ±COORD_MAX is refused, not wrapped.
     let wide = WindowParams { r_max_mm: 100_000, half_angle_deg: 89.999, ds_min_mm: u32::MAX, tb_mm: 0, ..prm.window };
-    assert_eq!(Window::place(&wide, p(1000, 1000), 0.3).unwrap_err(), WindowError::BadRange);
+    assert_eq!(
+        Window::place_for(&wide, p(1000, 1000), 0.3, Strategy::PseudoPaths).unwrap_err(),
+        WindowError::BadRange
+    );
+    // The exact strategy lays out no paths: the same window places, and is searched.
+    let w = Window::place(&wide, p(1000, 1000), 0.3).unwrap();
+    assert!(w.layout().is_none());
+    let _ = predict(&*m, &w, &PredictParams { window: wide, ..prm }, &CRISP).unwrap();
+}
+
+/// Item 5 of "bring your own robot": a window with d_s_min 20 mm at θ_o 30°
+/// (MARGE's range) would need 328 pseudo-paths, more than a layout holds.
+/// The exact strategy lays out none, so it places and predicts such a
+/// window; the pseudo-path strategy refuses it in words a person can act on.
+#[test]
+fn an_exact_window_needs_no_pseudo_path_layout() {
+    use echoloc::predict::{predict_mount, Mount, Pose};
+    use echoloc::window::WindowError;
+    let m = map_of(&[[p(2000, -3000), p(2000, 3000)]], &[]);
+    let window = WindowParams { ds_min_mm: 20, ..WindowParams::MARGE };
+    // Eq. (2) by hand: ⌈2·5500·tan 30° / (20·cos 15°)⌉ − 1 = ⌈328.7⌉ − 1 = 328.
+    let err = Window::place_for(&window, p(0, 0), 0.0, Strategy::PseudoPaths).unwrap_err();
+    assert_eq!(err, WindowError::TooManyPseudoPaths(328));
+    let words = err.to_string();
+    assert!(words.contains("328") && words.contains("exact strategy"), "{words}");
+    // Exact: placed without a layout, and the wall straight ahead is found at
+    // its perpendicular distance, Case I.
+    let w = Window::place(&window, p(0, 0), 0.0).unwrap();
+    assert!(w.layout().is_none() && w.paths().next().is_none());
+    let prm = PredictParams::new(window);
+    assert_eq!(prm.strategy, Strategy::Exact);
+    let got = predict(&*m, &w, &prm, &CRISP).unwrap().0.expect("the wall is predicted");
+    assert_eq!((got.range_mm, got.case), (2000, Case::I));
+    // Through the ring path too, which places the window for its strategy.
+    let pose = Pose { x_mm: 0.0, y_mm: 0.0, heading_rad: 0.0 };
+    let ahead = Mount { x_mm: 0, y_mm: 0, heading_mdeg: 0 };
+    let (ring, _) = predict_mount(&*m, &pose, &ahead, &prm, &CRISP).unwrap();
+    assert_eq!(ring.map(|r| r.range_mm), Some(2000));
+    // Searching the exact window with pseudo-paths is a typed refusal, not a silent miss.
+    let pp = PredictParams { strategy: Strategy::PseudoPaths, ..prm };
+    assert!(predict(&*m, &w, &pp, &CRISP).is_err());
+    assert!(predict_mount(&*m, &pose, &ahead, &pp, &CRISP).is_err());
 }

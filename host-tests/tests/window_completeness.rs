@@ -121,7 +121,7 @@ proptest! {
         let params = WindowParams { tb_mm: tb, ..p0 };
         prop_assert!(params.pseudo_paths_complete());
         let m = build(&c, tb);
-        let win = Window::place(&params, c.apex, c.heading).unwrap();
+        let win = Window::place_for(&params, c.apex, c.heading, Collect::PseudoPaths).unwrap();
         let exact = collect(&m, &win, Collect::Exact);
         let paths = collect(&m, &win, Collect::PseudoPaths);
         let (h, t) = (c.heading as f64, (params.half_angle_deg as f64).to_radians());
@@ -171,13 +171,13 @@ fn below_the_buffer_condition_pseudo_paths_can_miss() {
     let mut m: Box<M> = Box::default();
     m.add_obstacle(ObstacleKind::Solid, &[&bx[..]]).unwrap();
     m.finish(0, 1000).unwrap();
-    let win = Window::place(&params, Point::new(0, 0), 0.0).unwrap();
+    let win = Window::place_for(&params, Point::new(0, 0), 0.0, Collect::PseudoPaths).unwrap();
     assert!(win.sector.contains(Point::new(cx, cy)));
     assert_eq!(collect(&m, &win, Collect::Exact), BTreeSet::from([0]));
     assert!(collect(&m, &win, Collect::PseudoPaths).is_empty(), "missed: the box fits between two paths");
     // With t_b ≥ w + 2 the same box is found.
     let params = WindowParams { tb_mm: w.ceil() as u32 + 2, ..params };
     m.finish(params.tb_mm, 1000).unwrap();
-    let win = Window::place(&params, Point::new(0, 0), 0.0).unwrap();
+    let win = Window::place_for(&params, Point::new(0, 0), 0.0, Collect::PseudoPaths).unwrap();
     assert_eq!(collect(&m, &win, Collect::PseudoPaths), BTreeSet::from([0]));
 }

@@ -1,18 +1,11 @@
-//! `echoloc-lab`: the std command-line tool beside the firmware library.
-//! Units on the command line and in files are metres and degrees (DESIGN §7);
-//! output is JSON.
-
-mod bench;
-mod credence;
-mod link;
-mod map;
-mod predict;
-mod scenario;
-mod simulate;
+//! `echoloc-lab`: the std command-line tool beside the firmware library, a
+//! thin shell over the `echoloc_lab` library. Units on the command line and
+//! in files are metres and degrees (DESIGN §7); output is JSON.
 
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
+use echoloc_lab::{bench, credence, link, map, predict, replay, scenario, simulate, LabError};
 
 #[derive(Parser)]
 #[command(name = "echoloc-lab", version, about = "echoloc's lab tool: maps, windows, prediction, credence")]
@@ -34,9 +27,10 @@ enum Cmd {
     Synth(credence::SynthArgs),
     /// Self-referencing in a simulated world: a route, odometry, a physical sonar, verdicts, threshold method and EKF.
     Simulate(simulate::SimulateArgs),
-    /// Scenario files: replay one on the host through the same filters.
-    #[command(subcommand)]
-    Scenario(scenario::ScenarioCmd),
+    /// A robot's log (CSV, docs/log.md) through prediction, verdicts, the threshold method and the EKF.
+    Replay(replay::ReplayArgs),
+    /// Scenario files: replay one on the host through the same filters, or convert a robot's log into one.
+    Scenario(scenario::ScenarioArgs),
     /// Benchmarks: echoloc against ray fans on grids and polygons, per window, with completeness and memory.
     Bench(bench::BenchArgs),
     /// The host link: stream odometry to a controller (the QEMU firmware, or a socket) and print what it sends back as JSON lines.
@@ -54,8 +48,8 @@ fn main() -> ExitCode {
     let result = std::thread::Builder::new()
         .stack_size(256 << 20)
         .spawn(move || run(cli.cmd))
-        .map_err(|e| map::LabError(format!("cannot start the worker thread: {e}")))
-        .and_then(|h| h.join().unwrap_or_else(|_| Err(map::LabError("internal error: the worker panicked".into()))));
+        .map_err(|e| LabError(format!("cannot start the worker thread: {e}")))
+        .and_then(|h| h.join().unwrap_or_else(|_| Err(LabError("internal error: the worker panicked".into()))));
     match result {
         Ok(json) => {
             println!("{json}");
@@ -68,16 +62,17 @@ fn main() -> ExitCode {
     }
 }
 
-fn run(cmd: Cmd) -> Result<String, map::LabError> {
+fn run(cmd: Cmd) -> Result<String, LabError> {
     match cmd {
         Cmd::Map(c) => map::run(c),
         Cmd::Window(a) => predict::window_cmd(&a),
         Cmd::Predict(a) => predict::predict_cmd(&a),
-        Cmd::Synth(a) => credence::synth_cmd(&a).map_err(|e| map::LabError(e.to_string())),
+        Cmd::Synth(a) => credence::synth_cmd(&a).map_err(|e| LabError(e.to_string())),
         Cmd::Simulate(a) => simulate::simulate_cmd(&a),
-        Cmd::Scenario(c) => scenario::run(c),
+        Cmd::Replay(a) => replay::replay_cmd(&a),
+        Cmd::Scenario(a) => scenario::run(a),
         Cmd::Link(a) => link::link_cmd(&a),
         Cmd::Bench(a) => bench::bench_cmd(&a),
-        Cmd::Train(a) => credence::train_cmd(&a).map_err(|e| map::LabError(e.to_string())),
+        Cmd::Train(a) => credence::train_cmd(&a).map_err(|e| LabError(e.to_string())),
     }
 }

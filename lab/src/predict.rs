@@ -9,7 +9,7 @@ use echoloc::credence::net::CredenceNet;
 use echoloc::credence::Credence;
 use echoloc::geometry::Point;
 use echoloc::map::StandardMap;
-use echoloc::predict::{nearest_in_window, place_sensor, predict, Mount, Pose, PredictParams, PIONEER16};
+use echoloc::predict::{nearest_in_window, place_sensor, predict, Mount, Pose, PredictParams};
 use echoloc::window::{Strategy, Window, WindowParams};
 use serde_json::{json, Value};
 
@@ -45,7 +45,7 @@ pub fn window_cmd(a: &WindowArgs) -> Result<String, LabError> {
         tb_mm: a.tb_mm,
     };
     // The layout once: N_pp, w, w_min and every end point from it.
-    let l = p.layout().map_err(|e| LabError(format!("window parameters: {e:?}")))?;
+    let l = p.layout().map_err(|e| LabError(format!("window parameters: {e}")))?;
     let y = round3(p.r_max_mm as f64);
     let ends: Vec<Value> = (0..l.n_pp).map(|k| json!([round3(l.endpoint_x(k) as f64), y])).collect();
     Ok(json!({
@@ -155,32 +155,9 @@ pub fn load_map_and_blob(path: &Path, buffer_mm: u32) -> Result<(Box<StandardMap
     Ok((map::blob_to_map(&blob, path)?, blob))
 }
 
+/// The ring of `--ring SPEC` ([`crate::ring::load`]), its errors naming the option.
 pub fn ring_mounts(spec: &str) -> Result<Vec<Mount>, LabError> {
-    if spec == "pioneer16" {
-        return Ok(PIONEER16.to_vec());
-    }
-    let text = std::fs::read_to_string(spec).map_err(|e| LabError(format!("--ring {spec}: {e}")))?;
-    let v: Vec<[f64; 3]> = serde_json::from_str(&text)
-        .map_err(|e| LabError(format!("--ring {spec}: expected a JSON array of [x_m, y_m, heading_deg]: {e}")))?;
-    if v.is_empty() {
-        return Err(LabError(format!("--ring {spec}: no transducers")));
-    }
-    v.iter()
-        .enumerate()
-        .map(|(i, [x, y, d])| {
-            if !(x.is_finite() && y.is_finite() && d.is_finite()) || x.abs() > 100.0 || y.abs() > 100.0 {
-                return Err(LabError(format!("--ring {spec}: transducer {i}: position beyond ±100 m or not finite")));
-            }
-            if d.abs() > 360.0 {
-                return Err(LabError(format!("--ring {spec}: transducer {i}: heading {d}° beyond ±360°")));
-            }
-            Ok(Mount {
-                x_mm: (x * 1000.0).round() as i32,
-                y_mm: (y * 1000.0).round() as i32,
-                heading_mdeg: (d * 1000.0).round() as i32,
-            })
-        })
-        .collect()
+    crate::ring::load(spec).map_err(|e| LabError(format!("--ring {e}")))
 }
 
 pub fn predict_cmd(a: &PredictArgs) -> Result<String, LabError> {
@@ -194,7 +171,7 @@ pub fn predict_cmd(a: &PredictArgs) -> Result<String, LabError> {
         // Pseudo-paths search the buffered outlines the map was finished with.
         tb_mm: map.buffer_mm(),
     };
-    window.validate().map_err(|e| LabError(format!("window parameters: {e:?}")))?;
+    window.validate().map_err(|e| LabError(format!("window parameters: {e}")))?;
     if !(0.0..=1.0).contains(&a.tau) {
         return Err(LabError(format!("--tau {}: must be within 0..=1", a.tau)));
     }
@@ -222,10 +199,17 @@ pub fn predict_cmd(a: &PredictArgs) -> Result<String, LabError> {
     };
     let mut lines = Vec::new();
     for (i, &(apex, heading)) in sensors.iter().enumerate() {
-        let w = Window::place(&params.window, apex, heading)
-            .map_err(|e| LabError(format!("sensor {i} at {apex:?}: {e:?}")))?;
+        // The geometric search reads no pseudo-paths: lay them out only where that strategy runs.
+        let strategy = if a.geometric { Strategy::Exact } else { params.strategy };
+        let w = Window::place_for(&params.window, apex, heading, strategy).map_err(|e| {
+            LabError(format!(
+                "sensor {i} at ({}, {}) m: {e}",
+                f64::from(apex.x) / 1000.0,
+                f64::from(apex.y) / 1000.0
+            ))
+        })?;
         let line = if a.geometric {
-            let n = nearest_in_window(&*map, &w).map_err(|e| LabError(format!("sensor {i}: {e:?}")))?;
+            let n = nearest_in_window(&*map, &w).map_err(|e| LabError(format!("sensor {i}: {e}")))?;
             match n {
                 Some(n) => {
                     let (dx, dy) = (n.point.0 - apex.x as f64, n.point.1 - apex.y as f64);
@@ -239,7 +223,7 @@ pub fn predict_cmd(a: &PredictArgs) -> Result<String, LabError> {
                 }
             }
         } else {
-            let (p, _) = predict(&*map, &w, &params, &*model).map_err(|e| LabError(format!("sensor {i}: {e:?}")))?;
+            let (p, _) = predict(&*map, &w, &params, &*model).map_err(|e| LabError(format!("sensor {i}: {e}")))?;
             match p {
                 Some(p) => json!({"sensor": i, "range_m": p.range_mm as f64 / 1000.0, "kappa": p.kappa.to_num::<f64>(),
                                   "theta_deg": p.theta_mdeg as f64 / 1000.0, "delta_deg": p.delta_mdeg as f64 / 1000.0,

@@ -1,18 +1,52 @@
 //! `echoloc-lab scenario`: scenario files (docs/scenario.md) on the host.
 //! `replay` runs one through the very filters `simulate` ran (the same
 //! records, the same core code), so its figures are the simulate run's.
+//! `--from-log` converts a robot's log (docs/log.md) into one, so a board
+//! replays a real robot's log through its driver as it replays a simulated
+//! run.
 
 use std::path::PathBuf;
 
 use clap::{Args, Subcommand};
 use echoloc::predict::Mount;
-use echoloc::scenario::{Record, Scenario};
+use echoloc::scenario::{self, Header, Record, Scenario};
+use serde_json::json;
 
-use crate::map::LabError;
-use crate::predict::load_map_and_blob;
-use crate::simulate::{filters, report};
+use crate::log::{Log, Row};
+use crate::map::{write_atomically, LabError};
+use crate::predict::{load_map_and_blob, ring_mounts};
+use crate::replay::{cycles, parse_pose, start};
+use crate::simulate::world::FiringPlan;
+use crate::simulate::{check_writable, filters, motion_f64, report, start_of, BOUNDS};
 
-/// `scenario`.
+/// `scenario`: a subcommand, or `--from-log`.
+#[derive(Args)]
+#[command(args_conflicts_with_subcommands = true, subcommand_negates_reqs = true)]
+pub struct ScenarioArgs {
+    #[command(subcommand)]
+    pub cmd: Option<ScenarioCmd>,
+    /// Converts this log (CSV, docs/log.md) into a scenario (needs --map and -o).
+    #[arg(long = "from-log", requires_all = ["map", "out"])]
+    pub from_log: Option<PathBuf>,
+    /// The map the log was recorded in: a blob (.map), a ROS map_server .yaml or a .geojson.
+    #[arg(long)]
+    pub map: Option<PathBuf>,
+    /// The ring: pioneer16, or a JSON file of [x_m, y_m, heading_deg] per transducer.
+    #[arg(long, default_value = "pioneer16")]
+    pub ring: String,
+    /// The scenario to write.
+    #[arg(short = 'o', long = "out")]
+    pub out: Option<PathBuf>,
+    /// Where the robot starts in the map, x_m,y_m,θ_deg (default: the first
+    /// reference pose, else the first odometry pose).
+    #[arg(long = "initial-pose", allow_hyphen_values = true)]
+    pub initial_pose: Option<String>,
+    /// C-space buffer for a .yaml or .geojson map, mm.
+    #[arg(long = "buffer-mm", default_value_t = 100)]
+    pub buffer_mm: u32,
+}
+
+/// `scenario …` subcommands.
 #[derive(Subcommand)]
 pub enum ScenarioCmd {
     /// Checks a scenario against its map and runs it through the dead
@@ -37,9 +71,11 @@ pub struct ReplayArgs {
     json: bool,
 }
 
-pub fn run(cmd: ScenarioCmd) -> Result<String, LabError> {
-    match cmd {
-        ScenarioCmd::Replay(a) => replay(&a),
+pub fn run(a: ScenarioArgs) -> Result<String, LabError> {
+    match (&a.cmd, &a.from_log, &a.map, &a.out) {
+        (Some(ScenarioCmd::Replay(r)), _, _, _) => replay(r),
+        (None, Some(log), Some(map), Some(out)) => convert(&a, log, map, out),
+        _ => Err(LabError("scenario: give a subcommand (replay) or --from-log LOG --map MAP -o OUT".into())),
     }
 }
 
@@ -53,8 +89,145 @@ fn replay(a: &ReplayArgs) -> Result<String, LabError> {
     })?;
     let mounts: Vec<Mount> = (0..s.transducers()).filter_map(|i| s.mount(i)).collect();
     let records: Vec<Record> = s.records().collect();
-    let trace = filters::run(&map, &mounts, s.header(), &records, &mut |_| {})
+    let steps = filters::steps_of_records(s.header(), &records).map_err(LabError)?;
+    let trace = filters::run(&map, &mounts, &start_of(s.header()), &steps, &mut |_| {})
         .map_err(|e| LabError(format!("{}: {e}", a.scenario.display())))?;
     let r = report(&trace, None);
     Ok(if a.json { r.to_string() } else { serde_json::to_string_pretty(&r).unwrap_or_default() })
+}
+
+fn convert(a: &ScenarioArgs, log_path: &std::path::Path, map: &std::path::Path, out: &std::path::Path) -> Result<String, LabError> {
+    check_writable(out)?;
+    let given = a.initial_pose.as_deref().map(|s| parse_pose(s, "--initial-pose")).transpose()?;
+    let mounts = ring_mounts(&a.ring)?;
+    let log = crate::log::read_file(log_path, mounts.len())?;
+    let (_, blob) = load_map_and_blob(map, a.buffer_mm)?;
+    let (header, records) = from_log(&log, &mounts, echoloc::map::crc32(&blob), given)
+        .map_err(|e| LabError(format!("{}: {e}", log_path.display())))?;
+    let mut bytes = Vec::new();
+    scenario::write(&header, &mounts, &records, |b| bytes.extend_from_slice(b))
+        .map_err(|e| LabError(format!("{}: {e}", out.display())))?;
+    write_atomically(out, &bytes)?;
+    let reference = records.len() == log.rows.len() && log.rows.iter().all(|r| r.reference.is_some());
+    Ok(json!({
+        "out": out.display().to_string(),
+        "bytes": bytes.len(),
+        "records": records.len(),
+        "cycles": records.last().map_or(0, |r| r.cycle + 1),
+        "transducers": mounts.len(),
+        "reference": reference,
+        "bounds": if reference { json!([header.bound_position_m, header.bound_heading_deg]) } else { json!(null) },
+        "start": header.start,
+    })
+    .to_string())
+}
+
+/// The echo time the driver would measure for `range_mm`: the time of
+/// flight whose range, converted back by the driver, is nearest.
+fn echo_us(plan: &FiringPlan, range_mm: u32) -> u32 {
+    let um_per_s = f64::from(plan.module.sound().um_per_s());
+    let guess = (2.0 * f64::from(range_mm) * 1e9 / um_per_s).round() as u32;
+    (guess.saturating_sub(3)..=guess.saturating_add(3))
+        .min_by_key(|&us| (plan.range_mm(us).abs_diff(range_mm), us))
+        .unwrap_or(guess)
+}
+
+/// A log as a scenario for the driver the boards run ([`FiringPlan`]: the
+/// standard ring timing, spread firing order, 20 °C).
+///
+/// - Every ring cycle of the log ([`cycles`]) must give every transducer
+///   once: the driver fires each once per cycle. Within a cycle the rows
+///   are laid on the driver's slots (its firing order and times); each
+///   record's odometry increment runs from the previous record's
+///   cumulative pose, so a log in another order still gives each reading
+///   its own odometry.
+/// - Ranges become the echo times the driver would measure (it converts
+///   them back to within 1 mm); a range inside the driver's blanking or
+///   beyond its listening window is refused, since the driver could not
+///   have reported it.
+/// - With a reference pose on every row, it is the scenario's truth and the
+///   bounds are `simulate`'s (5 cm, 1°). Without, the truth is the dead
+///   reckoning from the start and the bounds are `f32::MAX` (no bound): the
+///   board then reports its final pose, and its pass means only that the
+///   loop ran.
+pub fn from_log(
+    log: &Log,
+    mounts: &[Mount],
+    map_crc: u32,
+    initial: Option<[f64; 3]>,
+) -> Result<(Header, Vec<Record>), String> {
+    let n = mounts.len();
+    let plan = FiringPlan::new(n, None).map_err(|e| format!("ring of {n}: {e}"))?;
+    let min_mm = plan.range_mm(plan.min_echo_us());
+    let max_mm = plan.range_mm(plan.window_us());
+    let with_reference = log.rows.iter().all(|r| r.reference.is_some());
+    let start = start(log, initial);
+    let s0 = start.pose.map(f64::from);
+    let mut records = Vec::with_capacity(log.rows.len());
+    let mut prev: Option<&Row> = None;
+    // Dead reckoning in the map frame, for a log without a reference.
+    let mut dr = s0;
+    for (k, cycle) in cycles(&log.rows).into_iter().enumerate() {
+        if cycle.len() != n {
+            let missing: Vec<String> = (0..n)
+                .filter(|&i| !cycle.iter().any(|r| usize::from(r.transducer) == i))
+                .map(|i| i.to_string())
+                .collect();
+            return Err(format!(
+                "line {}: the ring cycle starting here lacks transducer(s) {}: the driver fires every transducer once a cycle",
+                cycle[0].line,
+                missing.join(", ")
+            ));
+        }
+        for (slot, &t) in plan.order.iter().enumerate() {
+            let Some(r) = cycle.iter().find(|r| r.transducer == t) else {
+                return Err(format!("line {}: cycle without transducer {t}", cycle[0].line));
+            };
+            let a = prev.map_or(r.odometry, |p| p.odometry);
+            prev = Some(r);
+            let u = motion_f64((a[0], a[1], a[2]), (r.odometry[0], r.odometry[1], r.odometry[2]));
+            let (s, c) = dr[2].sin_cos();
+            let (dx, dy) = (f64::from(u.dx), f64::from(u.dy));
+            dr = [dr[0] + c * dx - s * dy, dr[1] + s * dx + c * dy, crate::simulate::world::wrap(dr[2] + f64::from(u.dphi))];
+            let echo_us = match r.range_mm {
+                None => None,
+                Some(mm) if mm < min_mm => {
+                    return Err(format!(
+                        "line {}: range {mm} mm is inside the driver's blanking (it reports nothing nearer than {min_mm} mm)",
+                        r.line
+                    ))
+                }
+                Some(mm) if mm >= max_mm => {
+                    return Err(format!(
+                        "line {}: range {mm} mm is beyond the driver's listening window (at most {} mm)",
+                        r.line,
+                        max_mm - 1
+                    ))
+                }
+                Some(mm) => Some(echo_us(&plan, mm)),
+            };
+            let truth = if with_reference { r.reference.unwrap_or(dr) } else { dr };
+            records.push(Record {
+                time_us: (plan.fire_us(k as u32, slot) & 0xFFFF_FFFF) as u32,
+                cycle: k as u32,
+                transducer: t,
+                slot: slot as u8,
+                echo_us,
+                odometry: [u.dx, u.dy, u.dphi],
+                truth: truth.map(|v| v as f32),
+            });
+        }
+    }
+    let (bound_position_m, bound_heading_deg) = if with_reference { BOUNDS } else { (f32::MAX, f32::MAX) };
+    let header = Header {
+        map_crc,
+        speed_um_per_s: plan.module.sound().um_per_s(),
+        period_us: plan.period_us,
+        slot_us: plan.slot_us,
+        start: start.pose,
+        start_sigma: start.sigma,
+        bound_position_m,
+        bound_heading_deg,
+    };
+    Ok((header, records))
 }

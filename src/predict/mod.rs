@@ -142,6 +142,15 @@ pub enum PredictError {
     Collect(CollectError),
 }
 
+impl core::fmt::Display for PredictError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            Self::Window(e) => write!(f, "window: {e}"),
+            Self::Collect(e) => write!(f, "beacon collection: {e}"),
+        }
+    }
+}
+
 impl From<WindowError> for PredictError {
     fn from(e: WindowError) -> Self {
         Self::Window(e)
@@ -196,6 +205,9 @@ pub fn predict<M: MapSource + ?Sized, K: Credence + ?Sized>(
     params: &PredictParams,
     credence: &K,
 ) -> Result<(Option<Prediction>, PredictStats), PredictError> {
+    if !window.supports(params.strategy) {
+        return Err(PredictError::Collect(CollectError::NoPseudoPaths));
+    }
     let sector = &window.sector;
     let o = sector.apex;
     // Candidates as `(d² >> shift) << 16 | id`, d² the exact squared distance

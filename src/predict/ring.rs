@@ -82,7 +82,7 @@ pub fn predict_mount<M: MapSource + ?Sized, K: Credence + ?Sized>(
     credence: &K,
 ) -> Result<(Option<Prediction>, PredictStats), PredictError> {
     let (apex, heading) = place_sensor(pose, mount);
-    let window = Window::place(&params.window, apex, heading)?;
+    let window = Window::place_for(&params.window, apex, heading, params.strategy)?;
     predict(map, &window, params, credence)
 }
 

@@ -22,6 +22,26 @@ pub enum WindowError {
     TooManyPseudoPaths(u32),
 }
 
+impl core::fmt::Display for WindowError {
+    /// In words a person can act on.
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            Self::BadRange => write!(
+                f,
+                "bad range: R_min must be below R_max, R_max within 1..={MAX_RANGE_MM} mm, and the window inside the map's coordinates"
+            ),
+            Self::BadHalfAngle => f.write_str("bad half-angle: θ_o must lie strictly between 0° and 90°"),
+            Self::BadDeltaMax => f.write_str("bad δ_max: it must lie in [0°, 90°)"),
+            Self::ZeroSurface => f.write_str("d_s_min is 0 mm: the pseudo-path spacing needs a smallest surface above 0"),
+            Self::TooManyPseudoPaths(n) => write!(
+                f,
+                "the pseudo-path layout needs {n} paths, more than the {MAX_PSEUDO_PATHS} a window may have: \
+                 raise d_s_min, lower R_max or θ_o, or use the exact strategy, which lays out no paths"
+            ),
+        }
+    }
+}
+
 /// The pseudo-path layout of a window: eq. (2), (4), (5)–(6).
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]

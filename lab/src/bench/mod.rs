@@ -301,7 +301,7 @@ fn bench_map(
                 false,
                 aligned.bytes().len(),
                 Box::new(|w: &Win| {
-                    let win = place(w)?;
+                    let win = Window::place_for(&wp, w.apex, w.heading, Strategy::PseudoPaths).ok()?;
                     let mut ids: heapless::Vec<u16, 512> = heapless::Vec::new();
                     collect_beacons(&map, &win, Strategy::PseudoPaths, &mut ids).ok()?;
                     ids.iter()

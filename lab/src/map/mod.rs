@@ -10,9 +10,9 @@
 
 pub mod build;
 mod contour;
-mod geojson;
+pub mod geojson;
 pub mod render;
-mod ros;
+pub mod ros;
 mod simplify;
 #[cfg(test)]
 mod view_identity;
@@ -176,13 +176,51 @@ pub struct Source {
     pub extra: serde_json::Map<String, serde_json::Value>,
 }
 
+/// Imports a map source (`.yaml` ROS map_server with its image, or
+/// `.geojson` in metres) and compiles it into the firmware's map blob
+/// (`docs/map-blob.md`): C-space buffer `buffer_mm`, grid cells of
+/// `cell_mm` (grown until the grid fits). Returns the blob, the summary
+/// `map import` prints, and the source it was read from.
+///
+/// Splitting a large polygon into convex pieces uses fixed-capacity
+/// working sets of a few MB, as on the firmware side; this runs the work on
+/// a thread with room for them, so it may be called from any thread (a
+/// `build.rs` included).
+///
+/// ```no_run
+/// use echoloc_lab::map::{import, ImportOptions};
+/// let (blob, summary, _) = import("maps/warehouse.yaml".as_ref(), 100, 1000, &ImportOptions::default())?;
+/// std::fs::write("warehouse.map", &blob)?;
+/// println!("{}", summary.to_json());
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+pub fn import(
+    input: &Path,
+    buffer_mm: u32,
+    cell_mm: u32,
+    opt: &ImportOptions,
+) -> Result<(Vec<u8>, MapSummary, Source), ImportError> {
+    let (input, opt) = (input.to_path_buf(), *opt);
+    let path = input.clone();
+    let work = move || -> Result<(Vec<u8>, MapSummary, Source), ImportError> {
+        let src = read_source(&input, &opt)?;
+        let (blob, mut summary) =
+            build_map(&src.shapes, buffer_mm, cell_mm).map_err(|e| ImportError::Content { path: input, problem: e })?;
+        summary.extra = src.extra.clone();
+        Ok((blob, summary, src))
+    };
+    std::thread::Builder::new()
+        .stack_size(256 << 20)
+        .spawn(work)
+        .map_err(|e| ImportError::Io { path: path.clone(), source: e })?
+        .join()
+        .unwrap_or_else(|_| Err(ImportError::Content { path, problem: "internal error: the import panicked".into() }))
+}
+
 pub fn run(cmd: MapCmd) -> Result<String, LabError> {
     match cmd {
         MapCmd::Import { input, out, buffer_mm, cell_mm, simplify_mm, unknown, preview } => {
-            let src = read_source(&input, &ImportOptions { simplify_mm, unknown })?;
-            let (blob, mut summary) = build_map(&src.shapes, buffer_mm, cell_mm)
-                .map_err(|e| ImportError::Content { path: input.clone(), problem: e })?;
-            summary.extra = src.extra;
+            let (blob, summary, src) = import(&input, buffer_mm, cell_mm, &ImportOptions { simplify_mm, unknown })?;
             // Everything is computed before anything is written.
             let png = match &preview {
                 Some(_) => {

@@ -63,7 +63,7 @@ impl Agreement {
 /// `kappa_min` is the confidence mark.
 pub fn measure(map: &StandardMap, mounts: &[Mount], readings: &[SimReading], kappa_min: f32) -> Agreement {
     let net = CredenceNet::shipped();
-    let params = predict_params(map);
+    let params = predict_params(map.buffer_mm());
     let mut a = Agreement::default();
     for r in readings.iter().filter(|r| r.consistent && !matches!(r.source, EchoSource::Crosstalk | EchoSource::Noise))
     {

@@ -5,7 +5,6 @@
 use echoloc::map::StandardMap;
 
 use super::filters::{Methods, Trace};
-use super::world::SimRun;
 use crate::credence::plot::{legend, Canvas, Rgb};
 use crate::map::render::preview_canvas;
 use crate::map::Unknown;
@@ -29,14 +28,15 @@ fn mm(p: [f64; 3]) -> (f64, f64) {
     (p[0] * 1000.0, p[1] * 1000.0)
 }
 
-/// The two PNGs: paths on the map, errors over time.
-pub fn draw(map: &StandardMap, run: &SimRun, t: &Trace) -> (Vec<u8>, Vec<u8>) {
-    (paths(map, run, t), errors(t))
+/// The two PNGs: paths on the map (with the outlines of `unmapped`
+/// objects, m), errors over time (against the true pose, where known).
+pub fn draw(map: &StandardMap, unmapped: &[Vec<(f64, f64)>], t: &Trace) -> (Vec<u8>, Vec<u8>) {
+    (paths(map, unmapped, t), errors(t))
 }
 
-fn paths(map: &StandardMap, run: &SimRun, t: &Trace) -> Vec<u8> {
+fn paths(map: &StandardMap, unmapped: &[Vec<(f64, f64)>], t: &Trace) -> Vec<u8> {
     let mut cv = preview_canvas(map, None, Unknown::Free);
-    for outline in &run.unmapped {
+    for outline in unmapped {
         let n = outline.len();
         for i in 0..n {
             let (a, b) = (outline[i], outline[(i + 1) % n]);
@@ -44,11 +44,11 @@ fn paths(map: &StandardMap, run: &SimRun, t: &Trace) -> Vec<u8> {
         }
     }
     for (_, colour, m) in SERIES {
-        let track = match m {
-            None => &t.truth,
-            Some(Methods::DeadReckoning) => &t.dead_reckoning,
-            Some(Methods::Threshold) => &t.threshold,
-            Some(Methods::Ekf) => &t.ekf,
+        let track: Vec<[f64; 3]> = match m {
+            None => t.truth.iter().flatten().copied().collect(),
+            Some(Methods::DeadReckoning) => t.dead_reckoning.clone(),
+            Some(Methods::Threshold) => t.threshold.clone(),
+            Some(Methods::Ekf) => t.ekf.clone(),
         };
         for w in track.windows(2) {
             cv.line(mm(w[0]), mm(w[1]), colour, if m.is_none() { 3 } else { 2 });
@@ -68,14 +68,14 @@ fn errors(t: &Trace) -> Vec<u8> {
     c.text(30, 14, "POSITION AND HEADING ERROR OVER TIME", 3, BLACK);
     let t_end = t.times.last().copied().unwrap_or(1.0).max(1e-3);
     let t0 = t.times.first().copied().unwrap_or(0.0);
-    let series: Vec<(Rgb, Vec<(f64, f64)>)> =
+    let series: Vec<(Rgb, Vec<(f64, f64, f64)>)> =
         SERIES[1..].iter().map(|&(_, colour, m)| (colour, t.error_series(m.unwrap_or(Methods::Ekf)))).collect();
     let panels: [(&str, usize, i64); 2] = [("POSITION ERROR (M)", 0, 70), ("HEADING ERROR (DEG)", 1, 430)];
     let (px, pw, ph) = (110i64, w - 160, 280i64);
     for (title, k, py) in panels {
         let top = series
             .iter()
-            .flat_map(|(_, s)| s.iter().map(move |e| if k == 0 { e.0 } else { e.1.abs() }))
+            .flat_map(|(_, s)| s.iter().map(move |e| if k == 0 { e.1 } else { e.2.abs() }))
             .fold(0.0f64, f64::max)
             .max(1e-3);
         let top = nice(top);
@@ -94,8 +94,8 @@ fn errors(t: &Trace) -> Vec<u8> {
         c.text(px + pw / 2 - 30, py + ph + 30, "TIME (S)", 2, BLACK);
         for (colour, s) in &series {
             let mut prev = None;
-            for (time, e) in t.times.iter().zip(s) {
-                let v = if k == 0 { e.0 } else { e.1.abs() };
+            for &(time, p, h) in s {
+                let v = if k == 0 { p } else { h.abs() };
                 let x = px + ((time - t0) / (t_end - t0).max(1e-9) * pw as f64) as i64;
                 let y = py + ph - ((v / top).min(1.0) * ph as f64) as i64;
                 if let Some(q) = prev {

@@ -59,8 +59,8 @@ pub struct Errors {
 pub struct Trace {
     /// Firing times, s.
     pub times: Vec<f64>,
-    /// True poses (x m, y m, φ rad).
-    pub truth: Vec<[f64; 3]>,
+    /// True poses (x m, y m, φ rad), where known.
+    pub truth: Vec<Option<[f64; 3]>>,
     /// Dead reckoning.
     pub dead_reckoning: Vec<[f64; 3]>,
     /// The threshold method.
@@ -83,8 +83,11 @@ pub struct Trace {
     pub cycles_lost: u32,
     /// Readings that moved the threshold method's pose.
     pub threshold_corrections: u32,
-    /// True distance driven, m.
+    /// Distance driven, m: along the truth where every reading has one,
+    /// else along the odometry.
     pub distance_m: f64,
+    /// The EKF's final covariance (m², m·rad, rad²).
+    pub covariance: [[f32; 3]; 3],
     /// Duration, s.
     pub duration_s: f64,
 }
@@ -98,34 +101,99 @@ impl Trace {
         }
     }
 
-    /// Position and heading errors of `m` at each reading, m and degrees.
-    pub fn error_series(&self, m: Methods) -> Vec<(f64, f64)> {
+    /// Position and heading errors of `m` at each reading that has a true
+    /// pose: (time s, position error m, heading error degrees).
+    pub fn error_series(&self, m: Methods) -> Vec<(f64, f64, f64)> {
         self.track(m)
             .iter()
             .zip(&self.truth)
-            .map(|(e, t)| ((e[0] - t[0]).hypot(e[1] - t[1]), wrap(e[2] - t[2]).to_degrees()))
+            .zip(&self.times)
+            .filter_map(|((e, t), &time)| {
+                t.map(|t| (time, (e[0] - t[0]).hypot(e[1] - t[1]), wrap(e[2] - t[2]).to_degrees()))
+            })
             .collect()
     }
 
-    /// Error figures of `m`.
-    pub fn errors(&self, m: Methods) -> Errors {
+    /// Error figures of `m`; `None` when no reading has a true pose.
+    pub fn errors(&self, m: Methods) -> Option<Errors> {
         let s = self.error_series(m);
-        let n = s.len().max(1) as f64;
-        let (p2, h2) = s.iter().fold((0.0, 0.0), |(a, b), (p, h)| (a + p * p, b + h * h));
-        let last = s.last().copied().unwrap_or_default();
-        Errors {
+        let last = *s.last()?;
+        let n = s.len() as f64;
+        let (p2, h2) = s.iter().fold((0.0, 0.0), |(a, b), (_, p, h)| (a + p * p, b + h * h));
+        Some(Errors {
             position_rmse_m: (p2 / n).sqrt(),
             heading_rmse_deg: (h2 / n).sqrt(),
-            max_position_m: s.iter().map(|e| e.0).fold(0.0, f64::max),
-            final_position_m: last.0,
-            final_heading_deg: last.1.abs(),
-        }
+            max_position_m: s.iter().map(|e| e.1).fold(0.0, f64::max),
+            final_position_m: last.1,
+            final_heading_deg: last.2.abs(),
+        })
+    }
+
+    /// The final estimate of `m`.
+    pub fn final_pose(&self, m: Methods) -> Option<[f64; 3]> {
+        self.track(m).last().copied()
     }
 }
 
+/// One reading as the filters take it: what the firmware's loop has after
+/// the driver (a range, or none) and the odometry since the previous one.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Step {
+    /// Firing time, s.
+    pub time_s: f64,
+    /// Ring cycle: the lost monitor closes a cycle when it changes.
+    pub cycle: u32,
+    /// Transducer index.
+    pub transducer: u8,
+    /// Odometry since the previous step, in its frame.
+    pub odometry: Motion,
+    /// The reading.
+    pub reading: Reading,
+    /// The true (reference) pose, where known.
+    pub truth: Option<[f32; 3]>,
+}
+
+/// Where the filters start: the pose and its standard deviations (m, m, rad).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Start {
+    /// x m, y m, φ rad.
+    pub pose: [f32; 3],
+    /// Standard deviations.
+    pub sigma: [f32; 3],
+}
+
+/// A scenario's records as steps: ranges from the echo times by the
+/// scenario's speed of sound, firing times unwrapped (they wrap at 2³² µs,
+/// 71 min).
+pub fn steps_of_records(header: &Header, records: &[Record]) -> Result<Vec<Step>, String> {
+    let sound = SpeedOfSound::from_um_per_s(header.speed_um_per_s).map_err(|e| format!("speed of sound: {e:?}"))?;
+    let (mut last_us, mut epoch) = (records.first().map_or(0, |r| r.time_us), 0u64);
+    Ok(records
+        .iter()
+        .map(|r| {
+            if r.time_us < last_us {
+                epoch += 1 << 32;
+            }
+            last_us = r.time_us;
+            Step {
+                time_s: (epoch + u64::from(r.time_us)) as f64 / 1e6,
+                cycle: r.cycle,
+                transducer: r.transducer,
+                odometry: Motion { dx: r.odometry[0], dy: r.odometry[1], dphi: r.odometry[2] },
+                reading: match r.echo_us {
+                    Some(us) => Reading::Echo { range_mm: sound.range_mm(us) },
+                    None => Reading::NoEcho,
+                },
+                truth: Some(r.truth),
+            }
+        })
+        .collect())
+}
+
 /// The prediction settings of the boards: MARGE's window on the map's buffer.
-pub fn predict_params(map: &StandardMap) -> PredictParams {
-    PredictParams::new(WindowParams { tb_mm: map.buffer_mm(), ..WindowParams::MARGE })
+/// (`buffer_mm`: the map's C-space buffer.)
+pub fn predict_params(buffer_mm: u32) -> PredictParams {
+    PredictParams::new(WindowParams { tb_mm: buffer_mm, ..WindowParams::MARGE })
 }
 
 fn compose(x: [f64; 3], u: &Motion) -> [f64; 3] {
@@ -138,50 +206,48 @@ fn f64x3(v: [f32; 3]) -> [f64; 3] {
     v.map(f64::from)
 }
 
-/// Runs every record through the three estimates.
+/// Runs every step through the three estimates.
 pub fn run(
     map: &StandardMap,
     mounts: &[Mount],
-    header: &Header,
-    records: &[Record],
+    start: &Start,
+    steps: &[Step],
     progress: &mut dyn FnMut(f64),
 ) -> Result<Trace, String> {
     let net = CredenceNet::shipped();
-    let params = predict_params(map);
-    let sound = SpeedOfSound::from_um_per_s(header.speed_um_per_s).map_err(|e| format!("speed of sound: {e:?}"))?;
+    let params = predict_params(map.buffer_mm());
     let verdicts = VerdictConfig::POLAROID;
-    let ekf = Ekf::new(header.start, header.start_sigma, EkfConfig::DEFAULT).map_err(|e| format!("start: {e:?}"))?;
+    let ekf = Ekf::new(start.pose, start.sigma, EkfConfig::DEFAULT).map_err(|e| format!("start: {e:?}"))?;
     let mut ekf = Referencer::new(ekf, verdicts);
-    let mut thr = Threshold::new(header.start, ThresholdConfig::DEFAULT);
-    let mut dr = f64x3(header.start);
+    let mut thr = Threshold::new(start.pose, ThresholdConfig::DEFAULT);
+    let mut dr = f64x3(start.pose);
     let mut t = Trace::default();
-    let mut cycle = records.first().map_or(0, |r| r.cycle);
+    let mut cycle = steps.first().map_or(0, |r| r.cycle);
     let mut prev_truth: Option<[f64; 3]> = None;
-    // Firing times wrap at 2³² µs (71 min): unwrap them.
-    let (mut last_us, mut epoch) = (records.first().map_or(0, |r| r.time_us), 0u64);
-    for (i, r) in records.iter().enumerate() {
+    let mut odometry_m = 0.0;
+    let all_true = steps.iter().all(|s| s.truth.is_some());
+    for (i, r) in steps.iter().enumerate() {
         if r.cycle != cycle {
             ekf.end_cycle();
             cycle = r.cycle;
         }
         let mount = mounts
             .get(usize::from(r.transducer))
-            .ok_or_else(|| format!("record {i}: no transducer {}", r.transducer))?;
-        let u = Motion { dx: r.odometry[0], dy: r.odometry[1], dphi: r.odometry[2] };
+            .ok_or_else(|| format!("reading {i}: no transducer {}", r.transducer))?;
+        let u = r.odometry;
+        let before = dr;
         dr = compose(dr, &u);
+        odometry_m += (dr[0] - before[0]).hypot(dr[1] - before[1]);
         thr.predict(&u);
-        ekf.odometry(&u).map_err(|e| format!("record {i}: {e:?}"))?;
-        let reading = match r.echo_us {
-            Some(us) => Reading::Echo { range_mm: sound.range_mm(us) },
-            None => Reading::NoEcho,
-        };
+        ekf.odometry(&u).map_err(|e| format!("reading {i}: {e:?}"))?;
+        let reading = r.reading;
         // The threshold method predicts from its own pose.
         let o = observe(map, &pose_mm(thr.state()), mount, &params, &net, reading, &verdicts)
-            .map_err(|e| format!("record {i}: {e:?}"))?;
+            .map_err(|e| format!("reading {i}: {e:?}"))?;
         if let (Reading::Echo { range_mm }, Some(p), Some(target)) = (reading, o.prediction, o.target) {
             thr.update(range_mm as f32 / 1000.0, p.kappa.to_num::<f32>(), MountM::from(mount), &target);
         }
-        let rep = ekf.reading(map, mount, &params, &net, reading).map_err(|e| format!("record {i}: {e:?}"))?;
+        let rep = ekf.reading(map, mount, &params, &net, reading).map_err(|e| format!("reading {i}: {e:?}"))?;
         match rep.update {
             Some(Update::Accepted { .. }) => t.accepted += 1,
             Some(Update::Gated { .. }) => t.gated += 1,
@@ -192,26 +258,26 @@ pub fn run(
             removed: rep.verdict == Verdict::RemovedOrMissed,
             predicted_obstacle: rep.prediction.map(|p| p.obstacle),
         });
-        let truth = f64x3(r.truth);
-        if let Some(p) = prev_truth {
-            t.distance_m += (truth[0] - p[0]).hypot(truth[1] - p[1]);
+        let truth = r.truth.map(f64x3);
+        if let (Some(p), Some(q)) = (prev_truth, truth) {
+            t.distance_m += (q[0] - p[0]).hypot(q[1] - p[1]);
         }
-        prev_truth = Some(truth);
-        if r.time_us < last_us {
-            epoch += 1 << 32;
-        }
-        last_us = r.time_us;
-        t.times.push((epoch + u64::from(r.time_us)) as f64 / 1e6);
+        prev_truth = truth.or(prev_truth);
+        t.times.push(r.time_s);
         t.truth.push(truth);
         t.dead_reckoning.push(dr);
         t.threshold.push(f64x3(thr.state()));
         let x = ekf.ekf.state();
         t.ekf.push(f64x3(x));
         if i % 256 == 0 {
-            progress(i as f64 / records.len().max(1) as f64);
+            progress(i as f64 / steps.len().max(1) as f64);
         }
     }
     ekf.end_cycle();
+    if !all_true {
+        t.distance_m = odometry_m;
+    }
+    t.covariance = ekf.ekf.covariance();
     t.verdicts = ekf.totals();
     t.lost_count = ekf.ekf.lost_count();
     // Every time it became lost but the last was cleared, and that one too unless it is still lost.

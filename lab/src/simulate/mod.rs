@@ -53,6 +53,10 @@ pub struct SimulateArgs {
     /// Writes the run as a binary scenario (docs/scenario.md).
     #[arg(long)]
     scenario: Option<PathBuf>,
+    /// Writes the run as a plain CSV log (docs/log.md), with the true pose as
+    /// the reference: `echoloc-lab replay` on it gives this run's figures.
+    #[arg(long)]
+    log: Option<PathBuf>,
 }
 
 /// κ at and above which the predictor counts as confident when its
@@ -71,7 +75,8 @@ pub fn simulate_cmd(a: &SimulateArgs) -> Result<String, LabError> {
     if !(0.0..=1.0).contains(&a.inconsistent) {
         return Err(LabError(format!("--inconsistent {}: must be within 0..=1", a.inconsistent)));
     }
-    for p in a.plot.iter().chain(a.plot.as_deref().map(error_plot_path).iter()).chain(a.scenario.iter()) {
+    for p in a.plot.iter().chain(a.plot.as_deref().map(error_plot_path).iter()).chain(a.scenario.iter()).chain(a.log.iter())
+    {
         check_writable(p)?;
     }
     let mounts = ring_mounts(&a.ring)?;
@@ -89,7 +94,8 @@ pub fn simulate_cmd(a: &SimulateArgs) -> Result<String, LabError> {
         .map_err(|e| LabError(format!("{}: {e}", a.map.display())))?;
     let records = to_records(&run)?;
     let header = header(&run, map_crc, &records);
-    let trace = filters::run(&map, &mounts, &header, &records, &mut |f| bar.set(0.5 + 0.5 * f))
+    let steps = filters::steps_of_records(&header, &records).map_err(LabError)?;
+    let trace = filters::run(&map, &mounts, &start_of(&header), &steps, &mut |f| bar.set(0.5 + 0.5 * f))
         .map_err(|e| LabError(format!("{}: {e}", a.map.display())))?;
     bar.finish();
     let mut report = report(&trace, Some(&run));
@@ -106,8 +112,11 @@ pub fn simulate_cmd(a: &SimulateArgs) -> Result<String, LabError> {
             .map_err(|e| LabError(format!("--scenario {}: {e}", p.display())))?;
         outputs.push((p.clone(), bytes));
     }
+    if let Some(p) = &a.log {
+        outputs.push((p.clone(), log_of(&run, &steps).into_bytes()));
+    }
     if let Some(p) = &a.plot {
-        let (paths, errors) = figures::draw(&map, &run, &trace);
+        let (paths, errors) = figures::draw(&map, &run.unmapped, &trace);
         outputs.push((p.clone(), paths));
         outputs.push((error_plot_path(p), errors));
     }
@@ -115,7 +124,35 @@ pub fn simulate_cmd(a: &SimulateArgs) -> Result<String, LabError> {
     Ok(if a.json { report.to_string() } else { serde_json::to_string_pretty(&report).unwrap_or_default() })
 }
 
-fn check_writable(p: &Path) -> Result<(), LabError> {
+/// Where a scenario's filters start.
+pub fn start_of(h: &Header) -> filters::Start {
+    filters::Start { pose: h.start, sigma: h.start_sigma }
+}
+
+/// The run as a plain log: each step's time, transducer and range (what the
+/// filters read), the cumulative odometry the increments came from, and the
+/// true pose as the reference.
+fn log_of(run: &SimRun, steps: &[filters::Step]) -> String {
+    let rows: Vec<crate::log::Row> = run
+        .readings
+        .iter()
+        .zip(steps)
+        .map(|(r, s)| crate::log::Row {
+            time_s: s.time_s,
+            transducer: s.transducer,
+            range_mm: match s.reading {
+                echoloc::referencing::Reading::Echo { range_mm } => Some(range_mm),
+                _ => None,
+            },
+            odometry: [r.odometry.0, r.odometry.1, r.odometry.2],
+            reference: Some([r.truth.0, r.truth.1, r.truth.2]),
+            line: 0,
+        })
+        .collect();
+    crate::log::write(&rows, true)
+}
+
+pub fn check_writable(p: &Path) -> Result<(), LabError> {
     let dir = p.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
     if !dir.is_dir() {
         return Err(LabError(format!("{}: folder {} does not exist", p.display(), dir.display())));
@@ -128,7 +165,7 @@ fn check_writable(p: &Path) -> Result<(), LabError> {
 
 /// Writes every output, each atomically; if one fails, the ones already
 /// written are removed again, so a run leaves all of its files or none.
-fn write_all(outputs: &[(PathBuf, Vec<u8>)]) -> Result<(), LabError> {
+pub fn write_all(outputs: &[(PathBuf, Vec<u8>)]) -> Result<(), LabError> {
     for (k, (p, bytes)) in outputs.iter().enumerate() {
         if let Err(e) = write_atomically(p, bytes) {
             for (q, _) in &outputs[..k] {
@@ -175,7 +212,7 @@ pub fn to_records(run: &SimRun) -> Result<Vec<Record>, LabError> {
 
 /// The odometry increment from `a` to `b` in `a`'s frame, computed in `f64`
 /// (cumulative poses far from the origin lose the increment in `f32`).
-fn motion_f64(a: (f64, f64, f64), b: (f64, f64, f64)) -> Motion {
+pub fn motion_f64(a: (f64, f64, f64), b: (f64, f64, f64)) -> Motion {
     let (s, c) = a.2.sin_cos();
     let (gx, gy) = (b.0 - a.0, b.1 - a.1);
     Motion { dx: (c * gx + s * gy) as f32, dy: (-s * gx + c * gy) as f32, dphi: world::wrap(b.2 - a.2) as f32 }
@@ -207,17 +244,24 @@ fn round4(v: f64) -> f64 {
     (v * 1e4).round() / 1e4
 }
 
+fn round6(v: f64) -> f64 {
+    (v * 1e6).round() / 1e6
+}
+
 /// The JSON report: errors of each method, verdicts and lost counts, and,
 /// with the simulator's truth, detection scores and the clutter.
 pub fn report(t: &Trace, run: Option<&SimRun>) -> Value {
+    // Without a true pose the error figures are null; the final pose is always there.
     let method = |m: Methods| {
         let e = t.errors(m);
+        let f = |g: fn(&filters::Errors) -> f64| e.as_ref().map(|e| round4(g(e)));
         json!({
-            "position_rmse_m": round4(e.position_rmse_m),
-            "heading_rmse_deg": round4(e.heading_rmse_deg),
-            "max_position_error_m": round4(e.max_position_m),
-            "final_position_error_m": round4(e.final_position_m),
-            "final_heading_error_deg": round4(e.final_heading_deg),
+            "position_rmse_m": f(|e| e.position_rmse_m),
+            "heading_rmse_deg": f(|e| e.heading_rmse_deg),
+            "max_position_error_m": f(|e| e.max_position_m),
+            "final_position_error_m": f(|e| e.final_position_m),
+            "final_heading_error_deg": f(|e| e.final_heading_deg),
+            "final_pose": t.final_pose(m).map(|p| p.map(round6)),
         })
     };
     let v = &t.verdicts;
@@ -235,6 +279,7 @@ pub fn report(t: &Trace, run: Option<&SimRun>) -> Value {
                 "lost_raised": t.lost_count,
                 "lost_cleared": t.lost_cleared,
                 "cycles_lost": t.cycles_lost,
+                "covariance": t.covariance.map(|r| r.map(|v| f64::from(v))),
             })
         ),
         "verdicts": {

@@ -48,6 +48,7 @@ pub use config::OdometryModel;
 pub use motion::OdometryErrors;
 #[allow(unused_imports)]
 pub use run::{Clutter, CONSISTENT_FIXED_MM, CONSISTENT_FRACTION};
+pub use timing::FiringPlan;
 pub use truth::World;
 
 use echoloc::map::StandardMap;

@@ -1,0 +1,59 @@
+//! # echoloc-lab
+//!
+//! The host side of echoloc as a Rust library: everything the
+//! `echoloc-lab` command line does, callable from a robot's own tools and
+//! build scripts. The command line (`src/main.rs`) is a thin shell over it.
+//!
+//! | module | what it does |
+//! |---|---|
+//! | [`map`] | import ROS map_server grids ([`map::ros`]) and GeoJSON ([`map::geojson`]) into convex, buffered polygons; compile the firmware's map blob ([`map::import`], [`map::build_map`]); inspect, export, preview |
+//! | [`ring`] | rings: `pioneer16` or a JSON file of transducer mounts |
+//! | [`log`] | the plain CSV log a robot's logger writes (`docs/log.md`): read with line-numbered errors, write |
+//! | [`replay`] | a log through prediction, verdicts, the threshold method and the EKF; `echoloc-lab replay` |
+//! | [`scenario`] | binary scenarios for the boards (`docs/scenario.md`): replay on the host, convert a log |
+//! | [`simulate`] | the independent physical simulator and the filters' run (`echoloc-lab simulate`) |
+//! | [`predict`] | windows and ring predictions from the command line |
+//! | [`credence`] | the credence net's data, training and quantisation |
+//! | [`bench`] | echoloc against ray fans on grids and polygons |
+//! | [`link`] | the host link to a controller |
+//!
+//! Compile a robot's ROS map into the blob the firmware reads (a `build.rs`
+//! can do this; `examples/map-at-build-time` does), then predict a ring and
+//! judge readings against the predictions:
+//!
+//! ```no_run
+//! use echoloc::credence::net::CredenceNet;
+//! use echoloc::map::{MapSource, MapView};
+//! use echoloc::predict::{predict_ring, Pose};
+//! use echoloc::referencing::{judge, Reading, VerdictConfig};
+//! use echoloc_lab::map::{import, AlignedBytes, ImportOptions};
+//! use echoloc_lab::simulate::filters::predict_params;
+//!
+//! let (blob, _, _) = import("robot/map.yaml".as_ref(), 100, 1000, &ImportOptions::default())?;
+//! let bytes = AlignedBytes::new(&blob);
+//! let map = MapView::new(bytes.bytes()).map_err(|e| format!("{e:?}"))?;
+//! let ring = echoloc_lab::ring::load("pioneer16")?;
+//! let pose = Pose { x_mm: 2000.0, y_mm: 1500.0, heading_rad: 0.3 };
+//! let mut predicted = vec![None; ring.len()];
+//! predict_ring(&map, &pose, &ring, &predict_params(map.buffer_mm()), &CredenceNet::shipped(), &mut predicted)
+//!     .map_err(|e| e.to_string())?;
+//! let verdict = judge(Reading::Echo { range_mm: 1234 }, predicted[0].as_ref(), &VerdictConfig::POLAROID);
+//! println!("{verdict:?}");
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+//!
+//! The small host program `examples/verdicts.rs` does this from the command
+//! line: `cargo run -p echoloc-lab --example verdicts -- MAP x,y,θ R0,R1,…`.
+
+pub mod bench;
+pub mod credence;
+pub mod link;
+pub mod log;
+pub mod map;
+pub mod predict;
+pub mod replay;
+pub mod ring;
+pub mod scenario;
+pub mod simulate;
+
+pub use map::LabError;

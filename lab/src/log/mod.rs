@@ -1,0 +1,375 @@
+//! The plain log a robot's own logger can write (`docs/log.md`): CSV with a
+//! header, one row per reading.
+//!
+//! | column | unit | |
+//! |---|---|---|
+//! | `time_s` | s | when the transducer fired; never decreasing; rows of a whole-ring reading share one time |
+//! | `transducer` | index | into the ring's order (the `--ring` file, or `pioneer16`) |
+//! | `range_mm` | mm | the echo's range; empty for no echo |
+//! | `odom_x_m`, `odom_y_m`, `odom_theta_rad` | m, m, rad | the odometry pose at the reading, cumulative, as robots log it |
+//! | `ref_x_m`, `ref_y_m`, `ref_theta_rad` | m, m, rad | optional: a reference pose (laser, motion capture); the columns may be absent, or a row's three cells empty |
+//!
+//! Columns may come in any order; lines starting with `#` are comments.
+//! [`read`] checks every row and refuses the whole log at the first bad
+//! one with a [`LogError`] naming its line; [`write`] writes the format.
+//!
+//! ```
+//! use echoloc_lab::log::{read, write};
+//! let text = "\
+//! time_s,transducer,range_mm,odom_x_m,odom_y_m,odom_theta_rad
+//! 0.00,0,1520,0,0,0
+//! 0.04,1,,0.001,0,0.0001
+//! ";
+//! let log = read(text, 16).unwrap();
+//! assert_eq!(log.rows[0].range_mm, Some(1520));
+//! assert_eq!(log.rows[1].range_mm, None);
+//! assert_eq!(read(&write(&log.rows, false), 16).unwrap().rows, log.rows);
+//!
+//! let bad = "time_s,transducer,range_mm,odom_x_m,odom_y_m,odom_theta_rad\n0,16,1000,0,0,0\n";
+//! assert_eq!(read(bad, 16).unwrap_err().to_string(), "line 2: transducer 16: the ring has 16 (0 to 15)");
+//! ```
+
+use std::fmt;
+
+/// The columns every log has.
+pub const COLUMNS: [&str; 6] = ["time_s", "transducer", "range_mm", "odom_x_m", "odom_y_m", "odom_theta_rad"];
+/// The reference pose's columns, all three or none.
+pub const REFERENCE_COLUMNS: [&str; 3] = ["ref_x_m", "ref_y_m", "ref_theta_rad"];
+/// Largest heading change of the odometry between two rows, rad. Beyond a
+/// quarter turn, a cumulative heading sampled this sparsely no longer says
+/// which way the robot turned: such a step is not odometry (a reset, a
+/// unit mistake, degrees logged as radians).
+pub const MAX_HEADING_STEP_RAD: f64 = std::f64::consts::FRAC_PI_2;
+/// Largest range a row may give, mm (100 m: beyond any sonar).
+pub const MAX_RANGE_MM: f64 = 100_000.0;
+
+/// One reading.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Row {
+    /// Firing time, s.
+    pub time_s: f64,
+    /// Transducer index into the ring.
+    pub transducer: u8,
+    /// Range, mm, rounded; `None`: no echo.
+    pub range_mm: Option<u32>,
+    /// Cumulative odometry pose: x m, y m, θ rad.
+    pub odometry: [f64; 3],
+    /// Reference pose, when the row has one.
+    pub reference: Option<[f64; 3]>,
+    /// The row's line in the file (1 is the header), for messages.
+    pub line: u64,
+}
+
+/// A log, every row checked.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Log {
+    /// The rows, in file order.
+    pub rows: Vec<Row>,
+}
+
+impl Log {
+    /// Whether any row has a reference pose.
+    pub fn has_reference(&self) -> bool {
+        self.rows.iter().any(|r| r.reference.is_some())
+    }
+}
+
+/// Why a log was refused: the line and what is wrong there.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LogError {
+    /// The line (1 is the header; 0: the file as a whole).
+    pub line: u64,
+    /// What is wrong.
+    pub problem: Problem,
+}
+
+/// What is wrong with a log.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Problem {
+    /// The file could not be read as CSV.
+    Csv(String),
+    /// No header line.
+    NoHeader,
+    /// A required column is not in the header.
+    MissingColumn(&'static str),
+    /// A header cell is not a column of the format.
+    UnknownColumn(String),
+    /// A column named twice.
+    DuplicateColumn(String),
+    /// Only some of the reference columns are in the header.
+    PartialReferenceColumns,
+    /// A row with another number of cells than the header.
+    CellCount {
+        /// Cells the header has.
+        expected: usize,
+        /// Cells the row has.
+        found: usize,
+    },
+    /// A required cell is empty.
+    Empty(&'static str),
+    /// A cell is not a number.
+    NotANumber {
+        /// The column.
+        column: &'static str,
+        /// Its text.
+        text: String,
+    },
+    /// A number is infinite or NaN.
+    NotFinite(&'static str),
+    /// A transducer index is not an integer.
+    BadTransducer(String),
+    /// A transducer index beyond the ring.
+    UnknownTransducer {
+        /// The index.
+        index: u64,
+        /// Transducers the ring has.
+        ring: usize,
+    },
+    /// A range zero, negative or beyond [`MAX_RANGE_MM`].
+    BadRange(f64),
+    /// A negative time.
+    NegativeTime(f64),
+    /// A row earlier than the one before it.
+    OutOfOrder {
+        /// This row's time, s.
+        time_s: f64,
+        /// The previous row's, s.
+        previous_s: f64,
+    },
+    /// The odometry heading turns by more than [`MAX_HEADING_STEP_RAD`] since the previous row.
+    HeadingJump {
+        /// The previous row's θ, rad.
+        from: f64,
+        /// This row's θ, rad.
+        to: f64,
+    },
+    /// One or two of a row's three reference cells are empty.
+    PartialReference,
+    /// No rows.
+    NoRows,
+}
+
+impl fmt::Display for LogError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        if self.line > 0 {
+            write!(f, "line {}: ", self.line)?;
+        }
+        match &self.problem {
+            Problem::Csv(e) => write!(f, "not CSV: {e}"),
+            Problem::NoHeader => write!(f, "no header line (expected {})", COLUMNS.join(",")),
+            Problem::MissingColumn(c) => write!(f, "the header has no column {c} (needed: {})", COLUMNS.join(",")),
+            Problem::UnknownColumn(c) => write!(
+                f,
+                "column {c:?} is not one of {}, {}",
+                COLUMNS.join(","),
+                REFERENCE_COLUMNS.join(",")
+            ),
+            Problem::DuplicateColumn(c) => write!(f, "column {c} appears twice"),
+            Problem::PartialReferenceColumns => {
+                write!(f, "the reference pose needs all three columns {} or none", REFERENCE_COLUMNS.join(","))
+            }
+            Problem::CellCount { expected, found } => {
+                write!(f, "{found} cells where the header has {expected} (a missing or extra column)")
+            }
+            Problem::Empty(c) => write!(f, "{c} is empty"),
+            Problem::NotANumber { column, text } => write!(f, "{column} {text:?} is not a number"),
+            Problem::NotFinite(c) => write!(f, "{c} is not finite"),
+            Problem::BadTransducer(t) => write!(f, "transducer {t:?} is not an index 0, 1, 2, …"),
+            Problem::UnknownTransducer { index, ring } => {
+                write!(f, "transducer {index}: the ring has {ring} (0 to {})", ring.saturating_sub(1))
+            }
+            Problem::BadRange(r) => write!(
+                f,
+                "range_mm {r}: a range must be above 0 and at most {MAX_RANGE_MM} mm (leave the cell empty for no echo)"
+            ),
+            Problem::NegativeTime(t) => write!(f, "time_s {t} is negative"),
+            Problem::OutOfOrder { time_s, previous_s } => {
+                write!(f, "time_s {time_s} is earlier than the row before it ({previous_s}): rows must be in time order")
+            }
+            Problem::HeadingJump { from, to } => write!(
+                f,
+                "odom_theta_rad jumps from {from} to {to}, {:.3} rad, more than a quarter turn between two readings: \
+                 that is not odometry (a reset, or degrees logged as radians?)",
+                wrap(to - from).abs()
+            ),
+            Problem::PartialReference => {
+                write!(f, "the reference pose needs all three cells {} or none", REFERENCE_COLUMNS.join(","))
+            }
+            Problem::NoRows => write!(f, "the log has no rows"),
+        }
+    }
+}
+
+impl std::error::Error for LogError {}
+
+/// An angle wrapped into (−π, π].
+fn wrap(a: f64) -> f64 {
+    let t = std::f64::consts::TAU;
+    let w = a.rem_euclid(t);
+    if w > std::f64::consts::PI {
+        w - t
+    } else {
+        w
+    }
+}
+
+/// Where each column is in the header.
+struct Layout {
+    index: [usize; 6],
+    reference: Option<[usize; 3]>,
+    cells: usize,
+}
+
+fn layout(header: &csv::StringRecord) -> Result<Layout, LogError> {
+    let err = |problem| LogError { line: 1, problem };
+    let names: Vec<&str> = header.iter().collect();
+    if names.iter().all(|n| n.is_empty()) {
+        return Err(err(Problem::NoHeader));
+    }
+    for (i, n) in names.iter().enumerate() {
+        if !COLUMNS.contains(n) && !REFERENCE_COLUMNS.contains(n) {
+            return Err(err(Problem::UnknownColumn(n.to_string())));
+        }
+        if names[..i].contains(n) {
+            return Err(err(Problem::DuplicateColumn(n.to_string())));
+        }
+    }
+    let find = |c: &str| names.iter().position(|n| *n == c);
+    let mut index = [0; 6];
+    for (slot, c) in index.iter_mut().zip(COLUMNS) {
+        *slot = find(c).ok_or(err(Problem::MissingColumn(c)))?;
+    }
+    let refs = REFERENCE_COLUMNS.map(find);
+    let reference = match refs {
+        [Some(a), Some(b), Some(c)] => Some([a, b, c]),
+        [None, None, None] => None,
+        _ => return Err(err(Problem::PartialReferenceColumns)),
+    };
+    Ok(Layout { index, reference, cells: names.len() })
+}
+
+fn number(cell: &str, column: &'static str) -> Result<Option<f64>, Problem> {
+    if cell.is_empty() {
+        return Ok(None);
+    }
+    let v: f64 = cell.parse().map_err(|_| Problem::NotANumber { column, text: cell.to_string() })?;
+    if !v.is_finite() {
+        return Err(Problem::NotFinite(column));
+    }
+    Ok(Some(v))
+}
+
+fn required(cell: &str, column: &'static str) -> Result<f64, Problem> {
+    number(cell, column)?.ok_or(Problem::Empty(column))
+}
+
+fn row(rec: &csv::StringRecord, l: &Layout, ring: usize, line: u64) -> Result<Row, Problem> {
+    if rec.len() != l.cells {
+        return Err(Problem::CellCount { expected: l.cells, found: rec.len() });
+    }
+    let cell = |i: usize| rec.get(i).unwrap_or("");
+    let time_s = required(cell(l.index[0]), COLUMNS[0])?;
+    if time_s < 0.0 {
+        return Err(Problem::NegativeTime(time_s));
+    }
+    let t = cell(l.index[1]);
+    if t.is_empty() {
+        return Err(Problem::Empty(COLUMNS[1]));
+    }
+    let index: u64 = t.parse().map_err(|_| Problem::BadTransducer(t.to_string()))?;
+    let transducer = u8::try_from(index)
+        .ok()
+        .filter(|&i| usize::from(i) < ring)
+        .ok_or(Problem::UnknownTransducer { index, ring })?;
+    let range_mm = match number(cell(l.index[2]), COLUMNS[2])? {
+        None => None,
+        Some(r) if r > 0.0 && r <= MAX_RANGE_MM && r.round() >= 1.0 => Some(r.round() as u32),
+        Some(r) => return Err(Problem::BadRange(r)),
+    };
+    let odometry = [3, 4, 5].map(|k| required(cell(l.index[k]), COLUMNS[k]));
+    let odometry = [odometry[0].clone()?, odometry[1].clone()?, odometry[2].clone()?];
+    let reference = match l.reference {
+        None => None,
+        Some(ix) => {
+            let v = [0, 1, 2].map(|k| number(cell(ix[k]), REFERENCE_COLUMNS[k]));
+            match [v[0].clone()?, v[1].clone()?, v[2].clone()?] {
+                [Some(x), Some(y), Some(th)] => Some([x, y, th]),
+                [None, None, None] => None,
+                _ => return Err(Problem::PartialReference),
+            }
+        }
+    };
+    Ok(Row { time_s, transducer, range_mm, odometry, reference, line })
+}
+
+/// Reads a log for a ring of `ring` transducers. Every row is checked; the
+/// first bad one refuses the whole log.
+pub fn read(text: &str, ring: usize) -> Result<Log, LogError> {
+    let mut r = csv::ReaderBuilder::new()
+        .has_headers(true)
+        .flexible(true)
+        .trim(csv::Trim::All)
+        .comment(Some(b'#'))
+        .from_reader(text.as_bytes());
+    let header = r.headers().map_err(|e| LogError { line: 1, problem: Problem::Csv(e.to_string()) })?.clone();
+    let header_line = r.position().line().max(1);
+    let l = layout(&header).map_err(|e| LogError { line: header_line, ..e })?;
+    let mut rows: Vec<Row> = Vec::new();
+    for rec in r.records() {
+        let rec = rec.map_err(|e| LogError {
+            line: e.position().map_or(0, |p| p.line()),
+            problem: Problem::Csv(e.to_string()),
+        })?;
+        let line = rec.position().map_or(0, |p| p.line());
+        let err = |problem| LogError { line, problem };
+        let row = row(&rec, &l, ring, line).map_err(err)?;
+        if let Some(prev) = rows.last() {
+            if row.time_s < prev.time_s {
+                return Err(err(Problem::OutOfOrder { time_s: row.time_s, previous_s: prev.time_s }));
+            }
+            let (from, to) = (prev.odometry[2], row.odometry[2]);
+            if wrap(to - from).abs() > MAX_HEADING_STEP_RAD {
+                return Err(err(Problem::HeadingJump { from, to }));
+            }
+        }
+        rows.push(row);
+    }
+    if rows.is_empty() {
+        return Err(LogError { line: 0, problem: Problem::NoRows });
+    }
+    Ok(Log { rows })
+}
+
+/// Reads a log file for a ring of `ring` transducers; errors name the file and the line.
+pub fn read_file(path: &std::path::Path, ring: usize) -> Result<Log, crate::LabError> {
+    let text = std::fs::read_to_string(path).map_err(|e| crate::LabError(format!("{}: {e}", path.display())))?;
+    read(&text, ring).map_err(|e| crate::LabError(format!("{}: {e}", path.display())))
+}
+
+/// Writes `rows` in the format, with the reference columns when
+/// `with_reference`. Numbers are written in Rust's shortest form that reads
+/// back to the same `f64`, so [`read`] gives the very same rows.
+pub fn write(rows: &[Row], with_reference: bool) -> String {
+    let mut out = COLUMNS.join(",");
+    if with_reference {
+        out.push(',');
+        out.push_str(&REFERENCE_COLUMNS.join(","));
+    }
+    out.push('\n');
+    for r in rows {
+        let range = r.range_mm.map(|v| v.to_string()).unwrap_or_default();
+        let [x, y, th] = r.odometry;
+        out.push_str(&format!("{},{},{range},{x},{y},{th}", r.time_s, r.transducer));
+        if with_reference {
+            match r.reference {
+                Some([a, b, c]) => out.push_str(&format!(",{a},{b},{c}")),
+                None => out.push_str(",,,"),
+            }
+        }
+        out.push('\n');
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests;

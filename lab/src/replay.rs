@@ -1,0 +1,144 @@
+//! `echoloc-lab replay`: a robot's log (`docs/log.md`) through the very
+//! filters `simulate` runs ([`crate::simulate::filters`]): prediction with
+//! the quantised credence, verdicts, the threshold method and the EKF, in
+//! the core's code. The JSON has `simulate --json`'s keys; the error
+//! figures are against the log's reference pose, and null without one.
+
+use std::path::PathBuf;
+
+use clap::Args;
+use echoloc::referencing::Reading;
+use serde_json::json;
+
+use crate::log::{Log, Row};
+use crate::map::LabError;
+use crate::predict::{load_map_and_blob, ring_mounts};
+use crate::simulate::filters::{self, Start, Step};
+use crate::simulate::{check_writable, error_plot_path, figures, motion_f64, report, write_all, START_SIGMA};
+
+/// `replay`.
+#[derive(Args)]
+pub struct ReplayArgs {
+    /// The map: a blob (.map), a ROS map_server .yaml or a .geojson.
+    #[arg(long)]
+    pub map: PathBuf,
+    /// The log: CSV, one row per reading (docs/log.md).
+    #[arg(long)]
+    pub log: PathBuf,
+    /// The ring: pioneer16, or a JSON file of [x_m, y_m, heading_deg] per transducer.
+    #[arg(long, default_value = "pioneer16")]
+    pub ring: String,
+    /// Where the robot starts in the map, x_m,y_m,θ_deg (default: the first
+    /// reference pose, else the first odometry pose).
+    #[arg(long = "initial-pose", allow_hyphen_values = true)]
+    pub initial_pose: Option<String>,
+    /// C-space buffer for a .yaml or .geojson map, mm.
+    #[arg(long = "buffer-mm", default_value_t = 100)]
+    pub buffer_mm: u32,
+    /// One JSON object (the default prints the same, indented).
+    #[arg(long)]
+    pub json: bool,
+    /// Writes the map with the paths to OUT.png and the error over time to OUT-error.png.
+    #[arg(long)]
+    pub plot: Option<PathBuf>,
+}
+
+/// The log's rows split into ring cycles: a cycle ends before a transducer
+/// fires a second time. A ring that fires one transducer at a time and
+/// whole-ring rows sharing one time both give one cycle per round.
+pub fn cycles(rows: &[Row]) -> Vec<&[Row]> {
+    let mut out = Vec::new();
+    let (mut start, mut seen) = (0, [false; 256]);
+    for (i, r) in rows.iter().enumerate() {
+        if seen[usize::from(r.transducer)] {
+            out.push(&rows[start..i]);
+            start = i;
+            seen = [false; 256];
+        }
+        seen[usize::from(r.transducer)] = true;
+    }
+    if start < rows.len() {
+        out.push(&rows[start..]);
+    }
+    out
+}
+
+/// The log as the filters' steps: odometry increments from the cumulative
+/// poses (in `f64`, as `simulate` makes them), ranges as logged, cycles by
+/// [`cycles`].
+pub fn steps_of_log(log: &Log) -> Vec<Step> {
+    let mut prev: Option<[f64; 3]> = None;
+    let mut out = Vec::with_capacity(log.rows.len());
+    for (c, cycle) in cycles(&log.rows).into_iter().enumerate() {
+        for r in cycle {
+            let a = prev.unwrap_or(r.odometry);
+            prev = Some(r.odometry);
+            out.push(Step {
+                time_s: r.time_s,
+                cycle: c as u32,
+                transducer: r.transducer,
+                odometry: motion_f64((a[0], a[1], a[2]), (r.odometry[0], r.odometry[1], r.odometry[2])),
+                reading: match r.range_mm {
+                    Some(range_mm) => Reading::Echo { range_mm },
+                    None => Reading::NoEcho,
+                },
+                truth: r.reference.map(|v| v.map(|x| x as f32)),
+            });
+        }
+    }
+    out
+}
+
+/// `x_m,y_m,θ_deg` as a pose (m, m, rad).
+pub fn parse_pose(s: &str, what: &str) -> Result<[f64; 3], LabError> {
+    let v: Vec<f64> = s.split(',').map(|t| t.trim().parse::<f64>()).collect::<Result<_, _>>().map_err(|_| {
+        LabError(format!("{what} {s:?}: expected x_m,y_m,θ_deg"))
+    })?;
+    match v[..] {
+        [x, y, d] if x.is_finite() && y.is_finite() && d.is_finite() && x.abs() <= 1e6 && y.abs() <= 1e6 => {
+            Ok([x, y, d.to_radians()])
+        }
+        [_, _, _] => Err(LabError(format!("{what} {s:?}: numbers must be finite, positions within ±1000 km"))),
+        _ => Err(LabError(format!("{what} {s:?}: expected three numbers x_m,y_m,θ_deg"))),
+    }
+}
+
+/// Where the filters start: `given` (m, m, rad), else the first reference
+/// pose, else the first odometry pose; with [`START_SIGMA`].
+pub fn start(log: &Log, given: Option<[f64; 3]>) -> Start {
+    let pose = given
+        .or_else(|| log.rows.iter().find_map(|r| r.reference))
+        .or_else(|| log.rows.first().map(|r| r.odometry))
+        .unwrap_or_default();
+    Start { pose: pose.map(|v| v as f32), sigma: START_SIGMA }
+}
+
+pub fn replay_cmd(a: &ReplayArgs) -> Result<String, LabError> {
+    if let Some(p) = &a.plot {
+        check_writable(p)?;
+        check_writable(&error_plot_path(p))?;
+    }
+    let given = a.initial_pose.as_deref().map(|s| parse_pose(s, "--initial-pose")).transpose()?;
+    let mounts = ring_mounts(&a.ring)?;
+    let log = crate::log::read_file(&a.log, mounts.len())?;
+    let (map, _) = load_map_and_blob(&a.map, a.buffer_mm)?;
+    let steps = steps_of_log(&log);
+    let trace = filters::run(&map, &mounts, &start(&log, given), &steps, &mut |_| {})
+        .map_err(|e| LabError(format!("{}: {e}", a.log.display())))?;
+    let mut r = report(&trace, None);
+    if let Some(o) = r.as_object_mut() {
+        o.insert(
+            "log".into(),
+            json!({
+                "rows": log.rows.len(),
+                "reference_rows": log.rows.iter().filter(|r| r.reference.is_some()).count(),
+                "cycles": steps.last().map_or(0, |s| s.cycle + 1),
+            }),
+        );
+    }
+    if let Some(p) = &a.plot {
+        let (paths, errors) = figures::draw(&map, &[], &trace);
+        write_all(&[(p.clone(), paths), (error_plot_path(p), errors)])?;
+    }
+    Ok(if a.json { r.to_string() } else { serde_json::to_string_pretty(&r).unwrap_or_default() })
+}
