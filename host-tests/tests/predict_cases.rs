@@ -258,10 +258,7 @@ fn headings_of_many_turns_and_windows_beyond_the_coordinates() {
     let _ = predict(&*m, &w, &prm, &CRISP).unwrap();
     // A window whose corner paths would leave ±COORD_MAX is refused, not wrapped.
     let wide = WindowParams { r_max_mm: 100_000, half_angle_deg: 89.999, ds_min_mm: u32::MAX, tb_mm: 0, ..prm.window };
-    assert_eq!(
-        Window::place_for(&wide, p(1000, 1000), 0.3, Strategy::PseudoPaths).unwrap_err(),
-        WindowError::BadRange
-    );
+    assert_eq!(Window::place_for(&wide, p(1000, 1000), 0.3, Strategy::PseudoPaths).unwrap_err(), WindowError::BadRange);
     // The exact strategy lays out no paths: the same window places, and is searched.
     let w = Window::place(&wide, p(1000, 1000), 0.3).unwrap();
     assert!(w.layout().is_none());

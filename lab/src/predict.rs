@@ -202,11 +202,7 @@ pub fn predict_cmd(a: &PredictArgs) -> Result<String, LabError> {
         // The geometric search reads no pseudo-paths: lay them out only where that strategy runs.
         let strategy = if a.geometric { Strategy::Exact } else { params.strategy };
         let w = Window::place_for(&params.window, apex, heading, strategy).map_err(|e| {
-            LabError(format!(
-                "sensor {i} at ({}, {}) m: {e}",
-                f64::from(apex.x) / 1000.0,
-                f64::from(apex.y) / 1000.0
-            ))
+            LabError(format!("sensor {i} at ({}, {}) m: {e}", f64::from(apex.x) / 1000.0, f64::from(apex.y) / 1000.0))
         })?;
         let line = if a.geometric {
             let n = nearest_in_window(&*map, &w).map_err(|e| LabError(format!("sensor {i}: {e}")))?;

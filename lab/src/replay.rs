@@ -91,9 +91,11 @@ pub fn steps_of_log(log: &Log) -> Vec<Step> {
 
 /// `x_m,y_m,θ_deg` as a pose (m, m, rad).
 pub fn parse_pose(s: &str, what: &str) -> Result<[f64; 3], LabError> {
-    let v: Vec<f64> = s.split(',').map(|t| t.trim().parse::<f64>()).collect::<Result<_, _>>().map_err(|_| {
-        LabError(format!("{what} {s:?}: expected x_m,y_m,θ_deg"))
-    })?;
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|t| t.trim().parse::<f64>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| LabError(format!("{what} {s:?}: expected x_m,y_m,θ_deg")))?;
     match v[..] {
         [x, y, d] if x.is_finite() && y.is_finite() && d.is_finite() && x.abs() <= 1e6 && y.abs() <= 1e6 => {
             Ok([x, y, d.to_radians()])

@@ -44,6 +44,10 @@ pub struct ScenarioArgs {
     /// C-space buffer for a .yaml or .geojson map, mm.
     #[arg(long = "buffer-mm", default_value_t = 100)]
     pub buffer_mm: u32,
+    /// The board's pass bounds, position RMSE m,heading RMSE deg (default
+    /// with a reference pose on every row: 0.05,1; without: none).
+    #[arg(long)]
+    pub bounds: Option<String>,
 }
 
 /// `scenario …` subcommands.
@@ -96,19 +100,34 @@ fn replay(a: &ReplayArgs) -> Result<String, LabError> {
     Ok(if a.json { r.to_string() } else { serde_json::to_string_pretty(&r).unwrap_or_default() })
 }
 
-fn convert(a: &ScenarioArgs, log_path: &std::path::Path, map: &std::path::Path, out: &std::path::Path) -> Result<String, LabError> {
+fn convert(
+    a: &ScenarioArgs,
+    log_path: &std::path::Path,
+    map: &std::path::Path,
+    out: &std::path::Path,
+) -> Result<String, LabError> {
     check_writable(out)?;
     let given = a.initial_pose.as_deref().map(|s| parse_pose(s, "--initial-pose")).transpose()?;
     let mounts = ring_mounts(&a.ring)?;
     let log = crate::log::read_file(log_path, mounts.len())?;
     let (_, blob) = load_map_and_blob(map, a.buffer_mm)?;
-    let (header, records) = from_log(&log, &mounts, echoloc::map::crc32(&blob), given)
+    let (mut header, records) = from_log(&log, &mounts, echoloc::map::crc32(&blob), given)
         .map_err(|e| LabError(format!("{}: {e}", log_path.display())))?;
+    if let Some(b) = &a.bounds {
+        let v: Vec<f32> = b.split(',').filter_map(|t| t.trim().parse().ok()).collect();
+        match v[..] {
+            [p, h] if p.is_finite() && h.is_finite() && p >= 0.0 && h >= 0.0 => {
+                (header.bound_position_m, header.bound_heading_deg) = (p, h)
+            }
+            _ => return Err(LabError(format!("--bounds {b:?}: expected two numbers ≥ 0, position_m,heading_deg"))),
+        }
+    }
     let mut bytes = Vec::new();
     scenario::write(&header, &mounts, &records, |b| bytes.extend_from_slice(b))
         .map_err(|e| LabError(format!("{}: {e}", out.display())))?;
     write_atomically(out, &bytes)?;
-    let reference = records.len() == log.rows.len() && log.rows.iter().all(|r| r.reference.is_some());
+    let reference = log.rows.iter().all(|r| r.reference.is_some());
+    let bounded = header.bound_position_m < f32::MAX;
     Ok(json!({
         "out": out.display().to_string(),
         "bytes": bytes.len(),
@@ -116,7 +135,7 @@ fn convert(a: &ScenarioArgs, log_path: &std::path::Path, map: &std::path::Path, 
         "cycles": records.last().map_or(0, |r| r.cycle + 1),
         "transducers": mounts.len(),
         "reference": reference,
-        "bounds": if reference { json!([header.bound_position_m, header.bound_heading_deg]) } else { json!(null) },
+        "bounds": if bounded { json!([header.bound_position_m, header.bound_heading_deg]) } else { json!(null) },
         "start": header.start,
     })
     .to_string())
@@ -188,7 +207,11 @@ pub fn from_log(
             let u = motion_f64((a[0], a[1], a[2]), (r.odometry[0], r.odometry[1], r.odometry[2]));
             let (s, c) = dr[2].sin_cos();
             let (dx, dy) = (f64::from(u.dx), f64::from(u.dy));
-            dr = [dr[0] + c * dx - s * dy, dr[1] + s * dx + c * dy, crate::simulate::world::wrap(dr[2] + f64::from(u.dphi))];
+            dr = [
+                dr[0] + c * dx - s * dy,
+                dr[1] + s * dx + c * dy,
+                crate::simulate::world::wrap(dr[2] + f64::from(u.dphi)),
+            ];
             let echo_us = match r.range_mm {
                 None => None,
                 Some(mm) if mm < min_mm => {

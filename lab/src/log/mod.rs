@@ -158,12 +158,9 @@ impl fmt::Display for LogError {
             Problem::Csv(e) => write!(f, "not CSV: {e}"),
             Problem::NoHeader => write!(f, "no header line (expected {})", COLUMNS.join(",")),
             Problem::MissingColumn(c) => write!(f, "the header has no column {c} (needed: {})", COLUMNS.join(",")),
-            Problem::UnknownColumn(c) => write!(
-                f,
-                "column {c:?} is not one of {}, {}",
-                COLUMNS.join(","),
-                REFERENCE_COLUMNS.join(",")
-            ),
+            Problem::UnknownColumn(c) => {
+                write!(f, "column {c:?} is not one of {}, {}", COLUMNS.join(","), REFERENCE_COLUMNS.join(","))
+            }
             Problem::DuplicateColumn(c) => write!(f, "column {c} appears twice"),
             Problem::PartialReferenceColumns => {
                 write!(f, "the reference pose needs all three columns {} or none", REFERENCE_COLUMNS.join(","))
@@ -184,7 +181,10 @@ impl fmt::Display for LogError {
             ),
             Problem::NegativeTime(t) => write!(f, "time_s {t} is negative"),
             Problem::OutOfOrder { time_s, previous_s } => {
-                write!(f, "time_s {time_s} is earlier than the row before it ({previous_s}): rows must be in time order")
+                write!(
+                    f,
+                    "time_s {time_s} is earlier than the row before it ({previous_s}): rows must be in time order"
+                )
             }
             Problem::HeadingJump { from, to } => write!(
                 f,
@@ -312,7 +312,7 @@ pub fn read(text: &str, ring: usize) -> Result<Log, LogError> {
         .comment(Some(b'#'))
         .from_reader(text.as_bytes());
     let header = r.headers().map_err(|e| LogError { line: 1, problem: Problem::Csv(e.to_string()) })?.clone();
-    let header_line = r.position().line().max(1);
+    let header_line = header.position().map_or(1, |p| p.line());
     let l = layout(&header).map_err(|e| LogError { line: header_line, ..e })?;
     let mut rows: Vec<Row> = Vec::new();
     for rec in r.records() {

@@ -75,7 +75,8 @@ pub fn simulate_cmd(a: &SimulateArgs) -> Result<String, LabError> {
     if !(0.0..=1.0).contains(&a.inconsistent) {
         return Err(LabError(format!("--inconsistent {}: must be within 0..=1", a.inconsistent)));
     }
-    for p in a.plot.iter().chain(a.plot.as_deref().map(error_plot_path).iter()).chain(a.scenario.iter()).chain(a.log.iter())
+    for p in
+        a.plot.iter().chain(a.plot.as_deref().map(error_plot_path).iter()).chain(a.scenario.iter()).chain(a.log.iter())
     {
         check_writable(p)?;
     }
