@@ -44,6 +44,11 @@ cargo test -q --workspace 2>&1 | tee target/host-tests.log
 # One closing line for CI readers: the sum over every test binary.
 awk '/^test result:/ { p += $4; f += $6 } END { printf "host tests: %d passed, %d failed\n", p, f }' target/host-tests.log
 
+step "bring your own robot (issue #16): a ROS map compiled by build.rs and read in place; the verdicts example"
+cargo run -q -p map-at-build-time
+cargo run -q -p echoloc-lab --example verdicts -- examples/map-at-build-time/map/room.yaml 2.5,2,0 1760,-,-,3230 | tee target/verdicts.txt
+grep -q "Confirmed" target/verdicts.txt
+
 step "QEMU firmware runs (timeout in the runner): main with its metrics, the depot map, one kappa, the EKF"
 out=$(cargo run -q -p qemu-mps2-an386 --target thumbv7em-none-eabihf --release 2>&1) || {
   echo "$out"

@@ -14,7 +14,7 @@
 //! | [`simulate`] | the independent physical simulator and the filters' run (`echoloc-lab simulate`) |
 //! | [`predict`] | windows and ring predictions from the command line |
 //! | [`credence`] | the credence net's data, training and quantisation |
-//! | [`bench`] | echoloc against ray fans on grids and polygons |
+//! | [`bench`](mod@bench) | echoloc against ray fans on grids and polygons |
 //! | [`link`] | the host link to a controller |
 //!
 //! Compile a robot's ROS map into the blob the firmware reads (a `build.rs`

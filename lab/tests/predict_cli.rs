@@ -55,7 +55,7 @@ fn window_example_1_and_bad_input() {
     assert_eq!(v["n_pp"], 175);
     let (ok, _, err) =
         lab(&["window", "--rmax-mm", "2400", "--half-angle-deg", "95", "--ds-min-mm", "20", "--delta-max-deg", "15"]);
-    assert!(!ok && err.contains("BadHalfAngle"), "{err}");
+    assert!(!ok && err.contains("bad half-angle") && err.contains("between 0° and 90°"), "{err}");
 }
 
 #[test]

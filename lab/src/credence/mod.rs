@@ -10,7 +10,7 @@
 //!   figures. Progress goes to stderr; the report is JSON on stdout.
 //!
 //! Both write all or nothing: every output is rendered in memory, and files
-//! are written only when the whole command has succeeded ([`Outputs`]).
+//! are written only when the whole command has succeeded (`Outputs`).
 
 pub mod data;
 pub mod error;
@@ -76,7 +76,7 @@ pub struct TrainArgs {
 }
 
 /// Runs `synth`; returns the JSON summary. All or nothing: every file is
-/// rendered first and written by [`Outputs::commit`].
+/// rendered first and written by `Outputs::commit`.
 pub fn synth_cmd(a: &SynthArgs) -> Result<String, CredenceError> {
     let grid = synth::Grid { readings: a.readings, ..synth::PAPER_GRID };
     let mut out = Outputs::default();

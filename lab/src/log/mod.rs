@@ -11,7 +11,7 @@
 //!
 //! Columns may come in any order; lines starting with `#` are comments.
 //! [`read`] checks every row and refuses the whole log at the first bad
-//! one with a [`LogError`] naming its line; [`write`] writes the format.
+//! one with a [`LogError`] naming its line; [`write()`] writes the format.
 //!
 //! ```
 //! use echoloc_lab::log::{read, write};

@@ -9,11 +9,11 @@
 //! unless everything succeeded.
 
 pub mod build;
-mod contour;
+pub mod contour;
 pub mod geojson;
 pub mod render;
 pub mod ros;
-mod simplify;
+pub mod simplify;
 #[cfg(test)]
 mod view_identity;
 

@@ -24,6 +24,9 @@ const SERIES: [(&str, Rgb, Option<Methods>); 4] = [
     ("EKF", EKF, Some(Methods::Ekf)),
 ];
 
+/// (time s, position error m, heading error °).
+type ErrorAt = (f64, f64, f64);
+
 fn mm(p: [f64; 3]) -> (f64, f64) {
     (p[0] * 1000.0, p[1] * 1000.0)
 }
@@ -68,7 +71,7 @@ fn errors(t: &Trace) -> Vec<u8> {
     c.text(30, 14, "POSITION AND HEADING ERROR OVER TIME", 3, BLACK);
     let t_end = t.times.last().copied().unwrap_or(1.0).max(1e-3);
     let t0 = t.times.first().copied().unwrap_or(0.0);
-    let series: Vec<(Rgb, Vec<(f64, f64, f64)>)> =
+    let series: Vec<(Rgb, Vec<ErrorAt>)> =
         SERIES[1..].iter().map(|&(_, colour, m)| (colour, t.error_series(m.unwrap_or(Methods::Ekf)))).collect();
     let panels: [(&str, usize, i64); 2] = [("POSITION ERROR (M)", 0, 70), ("HEADING ERROR (DEG)", 1, 430)];
     let (px, pw, ph) = (110i64, w - 160, 280i64);

@@ -280,7 +280,7 @@ pub fn report(t: &Trace, run: Option<&SimRun>) -> Value {
                 "lost_raised": t.lost_count,
                 "lost_cleared": t.lost_cleared,
                 "cycles_lost": t.cycles_lost,
-                "covariance": t.covariance.map(|r| r.map(|v| f64::from(v))),
+                "covariance": t.covariance.map(|r| r.map(f64::from)),
             })
         ),
         "verdicts": {

@@ -25,7 +25,7 @@ pub const MAX_TRANSDUCERS: usize = 64;
 /// How far from the robot's centre a transducer may sit, each way, mm.
 pub const MAX_MOUNT_MM: i32 = 2_000;
 
-/// Whether a transducer sits within [`MAX_MOUNT_MM`] of the robot's centre.
+/// Whether a transducer sits within `MAX_MOUNT_MM` of the robot's centre.
 pub fn within_reach(m: &Mount) -> bool {
     m.x_mm.unsigned_abs() <= MAX_MOUNT_MM as u32 && m.y_mm.unsigned_abs() <= MAX_MOUNT_MM as u32
 }
