@@ -73,8 +73,13 @@ fn the_fixture_is_what_its_script_writes() {
 
 #[test]
 fn the_hand_made_log_is_corrected_on_the_host() {
-    let v = run_json(&["replay", "--json", "--map", s(&depot_blob()), "--log", s(&fixture())]);
+    let plot = tmp("logrep", "hand.png");
+    let v = run_json(&["replay", "--json", "--map", s(&depot_blob()), "--log", s(&fixture()), "--plot", s(&plot)]);
     assert_eq!((v["log"]["rows"].as_u64(), v["log"]["cycles"].as_u64()), (Some(400), Some(25)));
+    for p in [plot.clone(), plot.with_file_name("hand-error.png")] {
+        let bytes = std::fs::read(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()));
+        assert!(bytes.starts_with(b"\x89PNG") && bytes.len() > 1000, "{}", p.display());
+    }
     let ekf = v["ekf"]["final_position_error_m"].as_f64().unwrap();
     let dr = v["dead_reckoning"]["final_position_error_m"].as_f64().unwrap();
     // The script's odometry drifts 17 cm over 4 m; the map pulls the EKF back.
