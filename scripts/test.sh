@@ -27,6 +27,7 @@ for t in "${thumbs[@]}"; do
 done
 cargo clippy -q -p qemu-mps2-an386 --target thumbv7em-none-eabihf -- -D warnings
 cargo clippy -q -p stm32f4-sonar --target thumbv7em-none-eabihf -- -D warnings
+cargo clippy -q -p panic-never --target thumbv7em-none-eabihf -- -D warnings
 
 step "core builds for the thumb targets"
 for t in "${thumbs[@]}"; do
@@ -34,6 +35,10 @@ for t in "${thumbs[@]}"; do
   cargo build -q -p echoloc --target "$t" --release --features defmt
   cargo build -q -p echoloc --target "$t" --release --features async
 done
+
+step "no panic path in the core (issue #14): the panic-never board links; with a planted panic it must not"
+bash scripts/panic-never.sh
+bash scripts/panic-never.sh --plant
 
 step "boards build"
 cargo build -q -p qemu-mps2-an386 --target thumbv7em-none-eabihf --release

@@ -29,6 +29,13 @@ pub fn sin_cos(a: f32) -> (f32, f32) {
     }
 }
 
+/// `v` within `[lo, hi]` by `max` then `min`: unlike `f32::clamp`, no
+/// assertion on the bounds, so no panic path (a NaN `v` gives `lo`).
+#[inline(always)]
+pub fn clamp(v: f32, lo: f32, hi: f32) -> f32 {
+    v.max(lo).min(hi)
+}
+
 /// √x, correctly rounded (IEEE 754), NaN below zero: the same bits on
 /// every target. On a hard-float ARM target (the Cortex-M4F) it is the FPU's
 /// `VSQRT.F32`, one instruction; elsewhere `libm`'s `sqrtf`.

@@ -47,6 +47,22 @@
 #![no_std]
 #![deny(unsafe_code)]
 #![warn(missing_docs)]
+// No panic paths (issue #14, docs/robustness.md): none of these outside
+// tests. Indexing is denied where hostile bytes arrive (the host link, the
+// scenario reader, the compiled-map validator); elsewhere the panic-never
+// link check (`scripts/panic-never.sh`) proves what indexing remains is
+// bounds-checked away.
+#![cfg_attr(
+    not(test),
+    deny(
+        clippy::unwrap_used,
+        clippy::expect_used,
+        clippy::panic,
+        clippy::todo,
+        clippy::unimplemented,
+        clippy::unreachable
+    )
+)]
 
 pub mod buffer;
 pub mod controller;
@@ -54,10 +70,12 @@ pub mod credence;
 pub mod driver;
 pub mod f32math;
 pub mod geometry;
+#[cfg_attr(not(test), deny(clippy::indexing_slicing))]
 pub mod link;
 pub mod map;
 pub mod predict;
 pub mod referencing;
+#[cfg_attr(not(test), deny(clippy::indexing_slicing))]
 pub mod scenario;
 pub mod tvector;
 pub mod window;

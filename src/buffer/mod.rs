@@ -103,6 +103,11 @@ pub fn grow(piece: Convex<'_>, t_b: u32) -> Result<Buffered, BufferError> {
     // vertices and merge the edge sequences by polar angle (exact compare).
     let start = |v: &[Point]| (0..v.len()).min_by_key(|&i| (v[i].y, v[i].x)).unwrap_or(0);
     let (n, m) = (p.len(), q.len());
+    if n == 0 || m == 0 {
+        // Never: a `Convex` has two vertices or more, an octagon four. The
+        // test lets the compiler drop the `% 0` panic paths below.
+        return Ok(out);
+    }
     let (sp, sq) = (start(p), 0);
     let (mut i, mut j) = (0usize, 0usize);
     while i < n || j < m {
@@ -137,9 +142,19 @@ pub fn grow(piece: Convex<'_>, t_b: u32) -> Result<Buffered, BufferError> {
     let mut k = 0;
     while out.len() > 3 && k < out.len() {
         let len = out.len();
-        let (a, b, c) = (out[(k + len - 1) % len], out[k], out[(k + 1) % len]);
+        // Neighbours without `%`, and reads through `get`: no panic path.
+        let (prev, next) = (if k == 0 { len - 1 } else { k - 1 }, if k + 1 == len { 0 } else { k + 1 });
+        let (Some(&a), Some(&b), Some(&c)) = (out.get(prev), out.get(k), out.get(next)) else { break };
         if crate::geometry::orient(a, b, c) == 0 {
-            out.remove(k);
+            // Remove vertex k: shift the tail down one, then drop the last.
+            for i in k..len - 1 {
+                if let Some(&v) = out.get(i + 1) {
+                    if let Some(slot) = out.get_mut(i) {
+                        *slot = v;
+                    }
+                }
+            }
+            out.pop();
         } else {
             k += 1;
         }

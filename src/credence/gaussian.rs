@@ -39,7 +39,7 @@ impl Credence for GaussianLobe {
             return Kappa::ZERO;
         }
         let t = echo.theta_mdeg as f32 / 1000.0 / self.sigma_deg;
-        let k = self.peak.clamp(0.0, 1.0) * libm::expf(-0.5 * t * t);
+        let k = crate::f32math::clamp(self.peak, 0.0, 1.0) * libm::expf(-0.5 * t * t);
         Kappa::saturating_from_num(k)
     }
 }

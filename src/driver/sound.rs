@@ -68,12 +68,22 @@ impl SpeedOfSound {
         ((p + ROUND_TRIP_DIVISOR / 2) / ROUND_TRIP_DIVISOR) as u32
     }
 
+    /// The speed as a divisor. It is ≥ 3·10⁸ µm/s by construction; the floor
+    /// of 1 only makes divisions by it total, so that no panic path is left
+    /// for the compiler to keep (the firmware's panic-never check).
+    const fn divisor(self) -> u64 {
+        if self.um_per_s == 0 {
+            1
+        } else {
+            self.um_per_s as u64
+        }
+    }
+
     /// Round-trip time of flight, µs, to a target `range_mm` away, rounded up
     /// (so a listening window of this length covers the whole range).
     pub const fn tof_us(self, range_mm: u32) -> u32 {
-        let c = self.um_per_s as u64;
-        // At most 4.3·10⁹ × 2·10⁹ = 8.6·10¹⁸ < 2⁶⁴. `c` ≥ 3·10⁸ by construction.
-        let t = (range_mm as u64 * ROUND_TRIP_DIVISOR).div_ceil(c);
+        // At most 4.3·10⁹ × 2·10⁹ = 8.6·10¹⁸ < 2⁶⁴.
+        let t = (range_mm as u64 * ROUND_TRIP_DIVISOR).div_ceil(self.divisor());
         if t > u32::MAX as u64 {
             u32::MAX
         } else {
@@ -86,7 +96,7 @@ impl SpeedOfSound {
     pub const fn tof_us_beyond(self, range_mm: u32) -> u32 {
         // range_mm(t) > r  ⟺  t·c + 10⁹ ≥ (r+1)·2·10⁹  ⟺  t·c ≥ (2r+1)·10⁹.
         // (2r+1)·10⁹ < 8.6·10¹⁸ < 2⁶⁴.
-        let t = ((2 * range_mm as u64 + 1) * (ROUND_TRIP_DIVISOR / 2)).div_ceil(self.um_per_s as u64);
+        let t = ((2 * range_mm as u64 + 1) * (ROUND_TRIP_DIVISOR / 2)).div_ceil(self.divisor());
         if t > u32::MAX as u64 {
             u32::MAX
         } else {

@@ -62,7 +62,8 @@ impl<P: Read + ReadReady + Write> Link<P> {
     pub fn send(&mut self, msg: &FromController) -> Result<(), LinkError<P::Error>> {
         let mut frame = [0u8; TX_FRAME];
         let n = encode::<_, TX_RAW>(msg, &mut frame).map_err(LinkError::Encode)?;
-        self.port.write_all(&frame[..n]).map_err(LinkError::Port)?;
+        let frame = frame.get(..n).ok_or(LinkError::Encode(EncodeError::TooLarge))?;
+        self.port.write_all(frame).map_err(LinkError::Port)?;
         self.port.flush().map_err(LinkError::Port)
     }
 

@@ -317,11 +317,14 @@ impl<'a> MapView<'a> {
             return Err(BlobError::GridCoverage);
         }
         for cell in 0..cells {
-            let (lo, hi) = (self.start[cell], self.start[cell + 1]);
+            let (Some(&lo), Some(&hi)) = (self.start.get(cell), self.start.get(cell + 1)) else {
+                return Err(BlobError::GridStart { cell: cell as u32 });
+            };
             if lo > hi || hi > c.refs {
                 return Err(BlobError::GridStart { cell: cell as u32 });
             }
-            let (x, y) = ((cell % c.cols as usize) as u16, (cell / c.cols as usize) as u16);
+            let cols = (c.cols as usize).max(1); // non-zero here (cells > 0); max keeps the division total
+            let (x, y) = ((cell % cols) as u16, (cell / cols) as u16);
             let mut last: Option<u16> = None;
             for &id in self.refs.get(lo as usize..hi as usize).unwrap_or(&[]) {
                 let Some(p) = self.pieces.get(id as usize) else {
@@ -508,7 +511,7 @@ impl<const PIECES: usize, const VERTS: usize, const CELLS: usize, const REFS: us
         for r in g.refs {
             put(&r.to_le_bytes());
         }
-        let crc = super::crc32(&out[BLOB_HEADER_LEN..]);
+        let crc = super::crc32(out.get(BLOB_HEADER_LEN..).unwrap_or(&[]));
         super::blob::write_header(out, COMPILED_VERSION, need - BLOB_HEADER_LEN, crc);
         Ok(need)
     }

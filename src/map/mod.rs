@@ -14,7 +14,9 @@
 //! a finished map returns it to building.
 
 mod blob;
+#[cfg_attr(not(test), deny(clippy::indexing_slicing))]
 mod compiled;
+#[cfg_attr(not(test), deny(clippy::indexing_slicing))]
 mod crc32;
 mod grid;
 mod source;

@@ -188,7 +188,7 @@ impl Ekf {
         }
         let mut p = [[0.0; 3]; 3];
         for i in 0..3 {
-            p[i][i] = (sigma[i] * sigma[i]).clamp(cfg.min_var[i], cfg.max_var[i]);
+            p[i][i] = crate::f32math::clamp(sigma[i] * sigma[i], cfg.min_var[i], cfg.max_var[i]);
         }
         Ok(Self {
             x: [x[0], x[1], wrap(x[2])],
@@ -367,8 +367,11 @@ impl Ekf {
     fn condition(&mut self) {
         for i in 0..3 {
             let d = self.p[i][i];
-            self.p[i][i] =
-                if d.is_finite() { d.clamp(self.cfg.min_var[i], self.cfg.max_var[i]) } else { self.cfg.max_var[i] };
+            self.p[i][i] = if d.is_finite() {
+                crate::f32math::clamp(d, self.cfg.min_var[i], self.cfg.max_var[i])
+            } else {
+                self.cfg.max_var[i]
+            };
         }
         for i in 0..3 {
             for j in (i + 1)..3 {

@@ -215,19 +215,30 @@ fn record_of(r: &[u8]) -> Record {
     Record {
         time_us: u32_at(r, 0),
         cycle: u32_at(r, 4),
-        transducer: r[8],
-        slot: r[9],
-        echo_us: (r[10] & 1 == 1).then(|| u32_at(r, 12)),
+        transducer: u8_at(r, 8),
+        slot: u8_at(r, 9),
+        echo_us: (u8_at(r, 10) & 1 == 1).then(|| u32_at(r, 12)),
         odometry: f32x3(r, 16),
         truth: f32x3(r, 28),
     }
 }
 
+// Callers read only offsets their lengths were checked for; `get` keeps a
+// read past the end a 0 rather than a panic path.
+fn u8_at(b: &[u8], o: usize) -> u8 {
+    b.get(o).copied().unwrap_or(0)
+}
 fn u16_at(b: &[u8], o: usize) -> u16 {
-    u16::from_le_bytes([b[o], b[o + 1]])
+    match b.get(o..o.saturating_add(2)) {
+        Some(&[x, y]) => u16::from_le_bytes([x, y]),
+        _ => 0,
+    }
 }
 fn u32_at(b: &[u8], o: usize) -> u32 {
-    u32::from_le_bytes([b[o], b[o + 1], b[o + 2], b[o + 3]])
+    match b.get(o..o.saturating_add(4)) {
+        Some(&[x, y, z, w]) => u32::from_le_bytes([x, y, z, w]),
+        _ => 0,
+    }
 }
 fn f32_at(b: &[u8], o: usize) -> f32 {
     f32::from_bits(u32_at(b, o))
@@ -248,14 +259,11 @@ impl<'a> Scenario<'a> {
     /// Checks everything once: sizes, CRC, every header field, mount and
     /// record. Nothing is trusted before this returns.
     pub fn parse(bytes: &'a [u8]) -> Result<Self, ScenarioError> {
+        let magic_ok = bytes.get(..4) == Some(&MAGIC[..]);
         if bytes.len() < FIXED_HEADER_LEN + 4 {
-            return Err(if bytes.len() >= 4 && bytes[..4] != MAGIC {
-                ScenarioError::Magic
-            } else {
-                ScenarioError::Length
-            });
+            return Err(if bytes.len() >= 4 && !magic_ok { ScenarioError::Magic } else { ScenarioError::Length });
         }
-        if bytes[..4] != MAGIC {
+        if !magic_ok {
             return Err(ScenarioError::Magic);
         }
         let version = u16_at(bytes, 4);
@@ -278,7 +286,7 @@ impl<'a> Scenario<'a> {
         }
         let body = bytes.len() - 4;
         let stored = u32_at(bytes, body);
-        let computed = crate::map::crc32(&bytes[..body]);
+        let computed = crate::map::crc32(bytes.get(..body).unwrap_or(&[]));
         if stored != computed {
             return Err(ScenarioError::Crc { stored, computed });
         }
@@ -295,7 +303,11 @@ impl<'a> Scenario<'a> {
         if !header.is_valid() {
             return Err(ScenarioError::Header);
         }
-        let s = Scenario { header, mounts: &bytes[FIXED_HEADER_LEN..header_len], records: &bytes[header_len..body] };
+        let (Some(mounts), Some(records)) = (bytes.get(FIXED_HEADER_LEN..header_len), bytes.get(header_len..body))
+        else {
+            return Err(ScenarioError::Layout);
+        };
+        let s = Scenario { header, mounts, records };
         for i in 0..n {
             let m = s.mount_unchecked(i);
             if !mount_ok(&m) {
@@ -303,10 +315,10 @@ impl<'a> Scenario<'a> {
             }
         }
         for (i, r) in s.records.chunks_exact(RECORD_LEN).enumerate() {
-            let bad = r[8] as usize >= n
-                || r[10] & !1 != 0
-                || r[11] != 0
-                || (r[10] & 1 == 0) != (u32_at(r, 12) == 0)
+            let bad = u8_at(r, 8) as usize >= n
+                || u8_at(r, 10) & !1 != 0
+                || u8_at(r, 11) != 0
+                || (u8_at(r, 10) & 1 == 0) != (u32_at(r, 12) == 0)
                 || !f32x3(r, 16).iter().chain(f32x3(r, 28).iter()).all(|v| v.is_finite());
             if bad {
                 return Err(ScenarioError::Record(i as u32));
@@ -429,6 +441,10 @@ pub fn write(
         b[10] = u8::from(r.echo_us.is_some());
         b[12..16].copy_from_slice(&r.echo_us.unwrap_or(0).to_le_bytes());
         for (k, v) in r.odometry.iter().chain(r.truth.iter()).enumerate() {
+            #[allow(
+                clippy::indexing_slicing,
+                reason = "six f32 fields at 16..40 of a 40-byte record: in range by construction"
+            )]
             b[16 + 4 * k..20 + 4 * k].copy_from_slice(&v.to_le_bytes());
         }
         put(&b);

@@ -282,7 +282,7 @@ impl Sector {
             let ee = dot(e, e) as f64;
             let oa = self.apex.sub(a);
             let (lo, hi) = (c.lo.to_f64(), c.hi.to_f64());
-            let s = if ee == 0.0 { lo } else { (dot(oa, e) as f64 / ee).clamp(lo, hi) };
+            let s = if ee == 0.0 { lo } else { (dot(oa, e) as f64 / ee).max(lo).min(hi) };
             let p = (a.x as f64 + s * e.0 as f64, a.y as f64 + s * e.1 as f64);
             let d = libm::hypot(p.0 - o.0, p.1 - o.1);
             if best.is_none_or(|(bd, _)| d < bd) {
