@@ -54,8 +54,24 @@ pub struct EkfConfig {
     pub lost_max_accepted: f32,
     /// ... while the position standard deviation is below this, m ...
     pub lost_max_sigma_m: f32,
-    /// ... for this many consecutive cycles.
+    /// ... for this many consecutive cycles. A cycle is bad too when the
+    /// gate's recent acceptance rate (a fast average, weight
+    /// `lost_rate_fast` per cycle) falls below `lost_rate_drop` times its
+    /// long-run rate (a slow average, weight `lost_rate_slow`, frozen while
+    /// cycles are bad): a kidnapped robot whose wrong pose still agrees with
+    /// a few readings, in a place where most used to validate. (Augmented
+    /// MCL's short- and long-term likelihood averages, on the gate's counts.)
     pub lost_cycles: u16,
+    /// Weight of a cycle in the long-run acceptance rate.
+    pub lost_rate_slow: f32,
+    /// Weight of a cycle in the recent acceptance rate.
+    pub lost_rate_fast: f32,
+    /// The recent rate below this fraction of the long-run rate makes a bad
+    /// cycle (0: off) ...
+    pub lost_rate_drop: f32,
+    /// ... when it is also this much below it (clutter that comes and goes
+    /// moves a low long-run rate by less).
+    pub lost_rate_margin: f32,
     /// A lost filter's covariance grows by this factor each cycle, so the
     /// gate widens until readings validate again (1: off; odometry alone
     /// still grows it as the robot moves).
@@ -68,8 +84,9 @@ impl EkfConfig {
     /// 1 cm/√m, heading 0.57°/√rad turned and 0.57°/√m driven; 15 mm range
     /// noise at κ = 1, point targets at twice that; the gate at 99 %; lost
     /// after 5 cycles in which at least 6 readings were tested and at most
-    /// 10 % passed while σ < 0.5 m; no inflation while lost (it let clutter
-    /// through the widened gate in the simulator).
+    /// 10 % passed, or the recent acceptance rate (weight 0.3) fell below
+    /// half the long-run rate (weight 0.02), while σ < 0.5 m; no inflation
+    /// while lost (it let clutter through the widened gate in the simulator).
     pub const DEFAULT: Self = Self {
         var_per_m: 4e-4,
         var_side_per_m: 1e-4,
@@ -85,6 +102,10 @@ impl EkfConfig {
         lost_max_accepted: 0.1,
         lost_max_sigma_m: 0.5,
         lost_cycles: 5,
+        lost_rate_slow: 0.005,
+        lost_rate_fast: 0.1,
+        lost_rate_drop: 0.5,
+        lost_rate_margin: 0.25,
         lost_inflation: 1.0,
     };
 }
@@ -149,6 +170,11 @@ pub struct Ekf {
     cfg: EkfConfig,
     cycle: CycleUpdates,
     bad_run: u16,
+    /// Acceptance rates of tested cycles: long-run and recent.
+    rates: (f32, f32),
+    /// Tested cycles the rates have seen (saturating): until a rate's
+    /// weight is reached it is the plain mean, so neither starts biased.
+    rated: u16,
     lost: bool,
     lost_count: u32,
     cycles_lost: u32,
@@ -196,6 +222,8 @@ impl Ekf {
             cfg,
             cycle: CycleUpdates::default(),
             bad_run: 0,
+            rates: (0.0, 0.0),
+            rated: 0,
             lost: false,
             lost_count: 0,
             cycles_lost: 0,
@@ -320,7 +348,24 @@ impl Ekf {
         let sigma = sqrt(self.p[0][0] + self.p[1][1]);
         let tested = c.tested >= self.cfg.lost_min_tested;
         let frac = if c.tested == 0 { 0.0 } else { c.accepted as f32 / c.tested as f32 };
-        if tested && frac <= self.cfg.lost_max_accepted && (self.lost || sigma < self.cfg.lost_max_sigma_m) {
+        let mut dropped = false;
+        if tested {
+            let (slow, fast) = self.rates;
+            self.rated = self.rated.saturating_add(1);
+            let mean = 1.0 / self.rated as f32;
+            let fast = fast + self.cfg.lost_rate_fast.max(mean) * (frac - fast);
+            dropped = fast < self.cfg.lost_rate_drop * slow && slow - fast >= self.cfg.lost_rate_margin;
+            // The long-run rate learns only from good cycles, so a lasting
+            // fault cannot become the new normal.
+            let slow = if dropped || self.bad_run > 0 || self.lost {
+                slow
+            } else {
+                slow + self.cfg.lost_rate_slow.max(mean) * (frac - slow)
+            };
+            self.rates = (slow, fast);
+        }
+        let bad = frac <= self.cfg.lost_max_accepted || dropped;
+        if tested && bad && (self.lost || sigma < self.cfg.lost_max_sigma_m) {
             self.bad_run = self.bad_run.saturating_add(1);
         } else if tested || c.accepted > 0 {
             // Readings validate again (or the filter is unsure enough that
