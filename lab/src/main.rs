@@ -52,8 +52,16 @@ fn main() -> ExitCode {
         .and_then(|h| h.join().unwrap_or_else(|_| Err(LabError("internal error: the worker panicked".into()))));
     match result {
         Ok(json) => {
-            println!("{json}");
-            ExitCode::SUCCESS
+            use std::io::Write;
+            match writeln!(std::io::stdout().lock(), "{json}") {
+                Ok(()) => ExitCode::SUCCESS,
+                // A reader that stopped early (`| head`) is not our failure.
+                Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => ExitCode::SUCCESS,
+                Err(e) => {
+                    eprintln!("echoloc-lab: cannot write the output: {e}");
+                    ExitCode::FAILURE
+                }
+            }
         }
         Err(e) => {
             eprintln!("echoloc-lab: {e}");

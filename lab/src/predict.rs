@@ -7,7 +7,7 @@ use echoloc::credence::crisp::Crisp;
 use echoloc::credence::gaussian::GaussianLobe;
 use echoloc::credence::net::CredenceNet;
 use echoloc::credence::Credence;
-use echoloc::geometry::Point;
+use echoloc::geometry::{Point, COORD_MAX};
 use echoloc::map::StandardMap;
 use echoloc::predict::{nearest_in_window, place_sensor, predict, Mount, Pose, PredictParams};
 use echoloc::window::{Strategy, Window, WindowParams};
@@ -19,19 +19,19 @@ use crate::map::{self, LabError};
 #[derive(Args)]
 pub struct WindowArgs {
     /// R_max, mm.
-    #[arg(long = "rmax-mm")]
+    #[arg(long = "rmax-mm", allow_hyphen_values = true)]
     rmax_mm: u32,
     /// Half-angle θ_o, degrees.
-    #[arg(long = "half-angle-deg")]
+    #[arg(long = "half-angle-deg", allow_hyphen_values = true)]
     half_angle_deg: f32,
     /// Smallest detectable surface d_s_min, mm.
-    #[arg(long = "ds-min-mm")]
+    #[arg(long = "ds-min-mm", allow_hyphen_values = true)]
     ds_min_mm: u32,
     /// Largest cone arc deviation δ_max, degrees.
-    #[arg(long = "delta-max-deg")]
+    #[arg(long = "delta-max-deg", allow_hyphen_values = true)]
     delta_max_deg: f32,
     /// C-space buffer t_b, mm (0: unbuffered).
-    #[arg(long = "tb-mm", default_value_t = 0)]
+    #[arg(long = "tb-mm", default_value_t = 0, allow_hyphen_values = true)]
     tb_mm: u32,
 }
 
@@ -96,28 +96,28 @@ pub struct PredictArgs {
     #[arg(long, default_value = "pioneer16", requires = "pose")]
     ring: String,
     /// R_min, mm.
-    #[arg(long = "rmin-mm", default_value_t = 500)]
+    #[arg(long = "rmin-mm", default_value_t = 500, allow_hyphen_values = true)]
     rmin_mm: u32,
     /// R_max, mm.
-    #[arg(long = "rmax-mm", default_value_t = 5500)]
+    #[arg(long = "rmax-mm", default_value_t = 5500, allow_hyphen_values = true)]
     rmax_mm: u32,
     /// Half-angle θ_o, degrees.
-    #[arg(long = "half-angle-deg", default_value_t = 30.0)]
+    #[arg(long = "half-angle-deg", default_value_t = 30.0, allow_hyphen_values = true)]
     half_angle_deg: f32,
     /// δ_max, degrees.
-    #[arg(long = "delta-max-deg", default_value_t = 15.0)]
+    #[arg(long = "delta-max-deg", default_value_t = 15.0, allow_hyphen_values = true)]
     delta_max_deg: f32,
     /// d_s_min for the pseudo-path layout, mm.
-    #[arg(long = "ds-min-mm", default_value_t = 300)]
+    #[arg(long = "ds-min-mm", default_value_t = 300, allow_hyphen_values = true)]
     ds_min_mm: u32,
     /// C-space buffer when MAP is imported here (a .map blob carries its own), mm.
-    #[arg(long = "buffer-mm", default_value_t = 100)]
+    #[arg(long = "buffer-mm", default_value_t = 100, allow_hyphen_values = true)]
     buffer_mm: u32,
     /// Credence model.
     #[arg(long, value_enum, default_value = "net")]
     credence: Model,
     /// τ_κ, the least credence of a prediction.
-    #[arg(long, default_value_t = 0.5)]
+    #[arg(long, default_value_t = 0.5, allow_hyphen_values = true)]
     tau: f32,
     /// Beacon collection strategy.
     #[arg(long, value_enum, default_value = "exact")]
@@ -133,10 +133,25 @@ fn triple(s: &str, what: &str) -> Result<(f64, f64, f64), LabError> {
         .map(|t| t.trim().parse::<f64>())
         .collect::<Result<_, _>>()
         .map_err(|_| LabError(format!("--{what} {s:?}: expected X,Y,DEG (numbers)")))?;
-    match v[..] {
-        [x, y, d] if v.iter().all(|t| t.is_finite()) => Ok((x, y, d)),
-        _ => Err(LabError(format!("--{what} {s:?}: expected three finite numbers X,Y,DEG"))),
+    let (x, y, d) = match v[..] {
+        [x, y, d] if v.iter().all(|t| t.is_finite()) => (x, y, d),
+        _ => return Err(LabError(format!("--{what} {s:?}: expected three finite numbers X,Y,DEG"))),
+    };
+    // The map's coordinates are integer mm within ±COORD_MAX: a position
+    // beyond them cannot be placed, and is a mistake, not a far window.
+    let lim = f64::from(COORD_MAX) / 1000.0;
+    for (k, c) in [("X", x), ("Y", y)] {
+        if c.abs() > lim {
+            return Err(LabError(format!("--{what} {s:?}: {k} is beyond ±{lim:.0} m, the map's coordinate range")));
+        }
     }
+    // Beyond a million degrees the number is surely a mistake (and past
+    // 2^53 not even the integer typed); within, it is reduced exactly in f64
+    // before the conversion to radians.
+    if d.abs() > 1e6 {
+        return Err(LabError(format!("--{what} {s:?}: DEG is not a heading (beyond ±1000000°)")));
+    }
+    Ok((x, y, d.rem_euclid(360.0)))
 }
 
 /// Loads MAP in any of its three forms into the firmware's map.

@@ -350,8 +350,9 @@ pub fn read_source(input: &Path, opt: &ImportOptions) -> Result<Source, ImportEr
     }
 }
 
-/// The polygons of an occupancy grid, in mm, simplified.
-fn grid_shapes(
+/// The polygons of an occupancy grid, in mm, simplified, with figures for
+/// the summary; `path` names the source in errors.
+pub fn grid_shapes(
     path: &Path,
     grid: &ros::Grid,
     opt: &ImportOptions,

@@ -198,15 +198,21 @@ pub fn read_image(yaml_path: &Path, image: &Path) -> Result<Image, ImportError> 
     let bad =
         |problem: String| ImportError::Image { yaml: yaml_path.to_path_buf(), image: image.to_path_buf(), problem };
     let bytes = fs::read(image).map_err(|e| bad(format!("cannot read: {e}")))?;
+    decode_image(&bytes).map_err(bad)
+}
+
+/// Decodes a map image held in memory (PGM or PNG, by its content); the
+/// error says what is wrong with it.
+pub fn decode_image(bytes: &[u8]) -> Result<Image, String> {
     let img = if bytes.starts_with(b"P5") || bytes.starts_with(b"P2") {
-        read_pgm(&bytes).map_err(bad)?
+        read_pgm(bytes)?
     } else if bytes.starts_with(b"\x89PNG\r\n\x1a\n") {
-        read_png(&bytes).map_err(bad)?
+        read_png(bytes)?
     } else {
-        return Err(bad("not a PGM (P5/P2) or PNG image".into()));
+        return Err("not a PGM (P5/P2) or PNG image".into());
     };
     if img.width == 0 || img.height == 0 {
-        return Err(bad(format!("empty image ({}x{})", img.width, img.height)));
+        return Err(format!("empty image ({}x{})", img.width, img.height));
     }
     Ok(img)
 }
@@ -351,9 +357,14 @@ pub fn load(path: &Path) -> Result<Grid, ImportError> {
     let text = fs::read_to_string(path).map_err(|e| ImportError::Io { path: path.to_path_buf(), source: e })?;
     let yaml = parse_yaml(path, &text)?;
     let img = read_image(path, &yaml.image)?;
+    Ok(grid_of(yaml, &img))
+}
+
+/// The occupancy grid of a decoded image under its YAML's thresholds.
+pub fn grid_of(yaml: MapYaml, img: &Image) -> Grid {
     let cells =
         (0..img.width * img.height).map(|i| classify(&yaml, img.value[i], img.alpha.as_ref().map(|a| a[i]))).collect();
-    Ok(Grid { width: img.width, height: img.height, cells, yaml })
+    Grid { width: img.width, height: img.height, cells, yaml }
 }
 
 #[cfg(test)]
