@@ -24,7 +24,7 @@ bash fuzz/seeds.sh "$corpus"
 for t in "${targets[@]}"; do
   mkdir -p "$corpus/$t"
   echo "== fuzz $t for $secs s"
-  if ! log=$(cd fuzz && cargo +nightly fuzz run "$t" "../$corpus/$t" -- -max_total_time="$secs" -print_final_stats=1 2>&1); then
+  if ! log=$(cd fuzz && cargo +nightly fuzz run --debug-assertions "$t" "../$corpus/$t" -- -max_total_time="$secs" -print_final_stats=1 2>&1); then
     echo "$log" | tail -40
     echo "FAIL: fuzz target $t crashed; the input is in fuzz/artifacts/$t/ (make it a regression test)" >&2
     exit 1

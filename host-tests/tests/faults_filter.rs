@@ -139,6 +139,7 @@ fn an_outlier_flood_is_gated_raises_lost_and_the_filter_recovers() {
         }
     }
     let lost_at = lost_at.expect("a confident filter rejecting everything must report itself lost");
+    eprintln!("outlier flood: lost from cycle {lost_at}");
     assert!(lost_at < EkfConfig::DEFAULT.lost_cycles as usize + 1, "lost raised late: cycle {lost_at}");
     assert!(r.ekf.is_lost());
     // The crowd leaves: readings validate again, lost is cleared, the pose held.
@@ -189,6 +190,12 @@ fn a_kidnapped_robot_is_reported_lost_never_confidently_wrong_and_a_new_pose_rec
         }
     }
     assert!(r.ekf.lost_count() >= 1 || error_m(r.ekf.state(), kidnapped) < 0.1, "{outcomes:?}");
+    let first_lost = outcomes.iter().position(|o| o.2);
+    eprintln!(
+        "kidnapped {:.2} m: lost from cycle {first_lost:?}; per cycle tested/accepted {:?}",
+        error_m(start, kidnapped),
+        (outcomes[0].0, outcomes[0].1)
+    );
     // The robot's computer sends the pose it now knows (SetPose on the link):
     // a fresh filter there tracks, and is not lost.
     let mut r = referencer_at(kidnapped, [0.05, 0.05, 0.02]);
