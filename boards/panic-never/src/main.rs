@@ -4,11 +4,13 @@
 //! and link bytes read from flash partitions, poses from memory):
 //! validating the map, predicting rings with both strategies and the
 //! geometric search, the whole loop (ring driver over the replay bench,
-//! odometry, prediction, credence, verdicts, EKF, lost monitor), and the host
-//! link's decoder and encoder. Its panic handler calls a function that is
-//! declared but defined nowhere, so the program links only if the
-//! optimiser removed every panic path from all of it: a bounds check it
-//! could not prove, an `unwrap`, a division by zero, an overflow check.
+//! odometry, prediction, credence, verdicts, EKF, lost monitor), the host
+//! link's decoder and encoder, the link over a serial port with the
+//! odometry sync, and the threshold method. Its panic handler calls a
+//! function that is declared but defined nowhere, so the program links only
+//! if the optimiser removed every panic path from all of it: a bounds check
+//! it could not prove, an `unwrap`, a division by zero. (Integer overflow
+//! wraps in a release build, so it is not covered here: docs/robustness.md.)
 //!
 //! `cargo build -p panic-never --target thumbv7em-none-eabihf --release`
 //! (run by `scripts/test.sh`; `scripts/panic-never.sh --plant` shows it
@@ -20,11 +22,13 @@ use core::hint::black_box;
 
 use cortex_m_rt::entry;
 use echoloc::controller::replay::{check, run, scenario_odometry, ReplaySetup};
+use echoloc::controller::{OdometrySample, OdometrySync};
 use echoloc::credence::net::CredenceNet;
 use echoloc::link::frame::{encode, Decoder};
-use echoloc::link::{FromController, ToController};
+use echoloc::link::{FromController, Link, ToController};
 use echoloc::map::{MapSource, MapView};
 use echoloc::predict::{nearest_in_window, predict_ring, Mount, Pose, PredictParams, PIONEER16};
+use echoloc::referencing::{MountM, Target, Threshold, ThresholdConfig};
 use echoloc::scenario::replay::Bench;
 use echoloc::scenario::Scenario;
 use echoloc::window::{Strategy, Window, WindowParams};
@@ -57,6 +61,45 @@ fn f32_at(bytes: &[u8], at: usize) -> f32 {
     match bytes.get(at..at + 4) {
         Some(&[a, b, c, d]) => f32::from_le_bytes([a, b, c, d]),
         _ => 0.0,
+    }
+}
+
+/// A serial port over the input partition: what it holds is received, what
+/// is sent is counted.
+struct Port {
+    rx: &'static [u8],
+    tx: usize,
+}
+
+impl embedded_io::ErrorType for Port {
+    type Error = core::convert::Infallible;
+}
+
+impl embedded_io::Read for Port {
+    fn read(&mut self, buf: &mut [u8]) -> Result<usize, Self::Error> {
+        let n = buf.len().min(self.rx.len());
+        let (now, rest) = self.rx.split_at(n);
+        if let Some(dst) = buf.get_mut(..n) {
+            dst.copy_from_slice(now);
+        }
+        self.rx = rest;
+        Ok(n)
+    }
+}
+
+impl embedded_io::ReadReady for Port {
+    fn read_ready(&mut self) -> Result<bool, Self::Error> {
+        Ok(!self.rx.is_empty())
+    }
+}
+
+impl embedded_io::Write for Port {
+    fn write(&mut self, buf: &[u8]) -> Result<usize, Self::Error> {
+        self.tx = self.tx.wrapping_add(black_box(buf).len());
+        Ok(buf.len())
+    }
+    fn flush(&mut self) -> Result<(), Self::Error> {
+        Ok(())
     }
 }
 
@@ -109,7 +152,31 @@ fn main() -> ! {
     let status = FromController::Status { rx: decoder.counts(), odometry_refused: 0, readings: found, stale: 0 };
     let mut frame = [0u8; 300];
     let n = encode::<_, 256>(&status, &mut frame).unwrap_or(0);
-    black_box((found, frame, n));
+    // The link over a serial port (what the boards run): odometry in through
+    // the sync that interpolates it to firing times, the threshold method
+    // fed from it, a status out.
+    let mut link = Link::new(Port { rx: input.get(12..).unwrap_or(&[]), tx: 0 });
+    let mut sync: OdometrySync<8> = OdometrySync::default();
+    let mut threshold = Threshold::new([0.0; 3], ThresholdConfig::DEFAULT);
+    let target = Target::Point { point: [f32_at(input, 0), f32_at(input, 4)] };
+    let mount = MountM::from(&PIONEER16[3]);
+    for _ in 0..64 {
+        match link.poll(64) {
+            Ok(Some(ToController::Odometry { time_us, x, y, theta })) => {
+                if sync.push(OdometrySample { time_us, pose: [x, y, theta] }).is_ok() {
+                    let t = time_us.wrapping_sub(black_box(500));
+                    if let Ok(u) = sync.increment_to(t) {
+                        threshold.predict(&u);
+                        found += u32::from(threshold.update(f32_at(input, 8), 0.9, mount, &target));
+                    }
+                }
+            }
+            Ok(Some(_)) => found += 1,
+            Ok(None) | Err(_) => break,
+        }
+    }
+    let _ = link.send(&status);
+    black_box((found, frame, n, threshold.state(), link.rx_counts()));
     loop {
         cortex_m::asm::wfi();
     }
