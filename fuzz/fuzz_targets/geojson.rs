@@ -21,13 +21,7 @@ fuzz_target!(|data: &[u8]| {
 });
 
 fn build_and_validate(shapes: &[Shape]) {
-    let vertices: usize = shapes
-        .iter()
-        .map(|s| match s {
-            Shape::Solid { outer, holes } => outer.len() + holes.iter().map(Vec::len).sum::<usize>(),
-            Shape::Wall(w) => w.len(),
-        })
-        .sum();
+    let vertices: usize = shapes.iter().map(Shape::vertex_count).sum();
     if vertices > MAX_VERTICES {
         return;
     }

@@ -38,13 +38,7 @@ fuzz_target!(|data: &[u8]| {
         let grid = ros::grid_of(y.clone(), &img);
         let opt = ImportOptions { unknown, ..ImportOptions::default() };
         let Ok((shapes, _)) = grid_shapes(path, &grid, &opt) else { continue };
-        let vertices: usize = shapes
-            .iter()
-            .map(|s| match s {
-                Shape::Solid { outer, holes } => outer.len() + holes.iter().map(Vec::len).sum::<usize>(),
-                Shape::Wall(w) => w.len(),
-            })
-            .sum();
+        let vertices: usize = shapes.iter().map(Shape::vertex_count).sum();
         if vertices > MAX_VERTICES {
             continue;
         }

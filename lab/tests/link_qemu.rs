@@ -11,31 +11,12 @@
 
 mod common;
 
-use std::process::Command;
 
-use common::{lab, root};
+use common::{board_binary, lab, root};
 use echoloc::scenario::Scenario;
 
 fn build_firmware() -> std::path::PathBuf {
-    let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
-    let o = Command::new(cargo)
-        .current_dir(root())
-        .args([
-            "build",
-            "-q",
-            "-p",
-            "qemu-mps2-an386",
-            "--bin",
-            "link",
-            "--target",
-            "thumbv7em-none-eabihf",
-            "--release",
-        ])
-        .output()
-        .unwrap();
-    assert!(o.status.success(), "building the link firmware: {}", String::from_utf8_lossy(&o.stderr));
-    let dir = std::env::var("CARGO_TARGET_DIR").map_or_else(|_| root().join("target"), std::path::PathBuf::from);
-    dir.join("thumbv7em-none-eabihf/release/link")
+    board_binary("link")
 }
 
 #[test]

@@ -11,7 +11,7 @@ mod common;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use common::{lab, root, shared_map, tmp};
+use common::{board_binary, lab, root, shared_map, tmp};
 use serde_json::Value;
 
 fn s(p: &Path) -> &str {
@@ -89,25 +89,7 @@ fn the_hand_made_log_is_corrected_on_the_host() {
 
 /// The board's replay firmware on a scenario file; its output.
 fn qemu_replay(scn: &Path) -> String {
-    let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
-    let o = Command::new(cargo)
-        .current_dir(root())
-        .args([
-            "build",
-            "-q",
-            "-p",
-            "qemu-mps2-an386",
-            "--bin",
-            "replay",
-            "--target",
-            "thumbv7em-none-eabihf",
-            "--release",
-        ])
-        .output()
-        .unwrap();
-    assert!(o.status.success(), "building the replay firmware: {}", String::from_utf8_lossy(&o.stderr));
-    let dir = std::env::var("CARGO_TARGET_DIR").map_or_else(|_| root().join("target"), PathBuf::from);
-    let elf = dir.join("thumbv7em-none-eabihf/release/replay");
+    let elf = board_binary("replay");
     let o = Command::new("timeout")
         .args(["300", "qemu-system-arm", "-cpu", "cortex-m4", "-machine", "mps2-an386", "-nographic"])
         .args(["-monitor", "none", "-serial", "none", "-icount", "shift=0"])

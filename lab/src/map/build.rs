@@ -19,6 +19,16 @@ pub enum Shape {
     Wall(Vec<Point>),
 }
 
+impl Shape {
+    /// Its vertices, holes included.
+    pub fn vertex_count(&self) -> usize {
+        match self {
+            Shape::Solid { outer, holes } => outer.len() + holes.iter().map(Vec::len).sum::<usize>(),
+            Shape::Wall(w) => w.len(),
+        }
+    }
+}
+
 /// Most vertices one polygon (outer ring, holes and two bridge vertices per
 /// hole) may have before splitting. The splitter's working set is about 110
 /// bytes a vertex on the stack: `main` runs every command on a thread with a large one.

@@ -57,3 +57,16 @@ pub fn assert_blob_fresh(fresh: &Path, shipped: &str, regenerate: &str) {
     let shipped_bytes = std::fs::read(root().join(shipped)).unwrap();
     assert!(fresh == shipped_bytes, "{shipped} is stale: re-run `{regenerate}`");
 }
+
+/// Builds one binary of the QEMU board (release, thumbv7em) and returns its ELF.
+pub fn board_binary(bin: &str) -> PathBuf {
+    let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
+    let o = Command::new(cargo)
+        .current_dir(root())
+        .args(["build", "-q", "-p", "qemu-mps2-an386", "--bin", bin, "--target", "thumbv7em-none-eabihf", "--release"])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "building the {bin} firmware: {}", String::from_utf8_lossy(&o.stderr));
+    let dir = std::env::var("CARGO_TARGET_DIR").map_or_else(|_| root().join("target"), PathBuf::from);
+    dir.join("thumbv7em-none-eabihf/release").join(bin)
+}
