@@ -11,7 +11,6 @@
 
 mod common;
 
-
 use common::{board_binary, lab, root};
 use echoloc::scenario::Scenario;
 

@@ -141,7 +141,8 @@ fn section_sizes(c: &Counts) -> Option<[u64; 5]> {
         32 * c.pieces as u64,
         8 * c.vertices as u64,
         cells.checked_add(1)?.checked_mul(4)?,
-        (2 * c.refs as u64).next_multiple_of(4),
+        // Two bytes a ref, padded to 4: below 2³⁴, no overflow.
+        (u64::from(c.refs) * 2 + 3) & !3,
     ])
 }
 
@@ -178,9 +179,10 @@ impl<'a> MapView<'a> {
         let verts = section(payload, &mut at, sizes[2])?;
         let start = section(payload, &mut at, sizes[3])?;
         let refs_bytes = payload.get(at..).ok_or(BlobError::Truncated)?;
-        let (refs_bytes, pad) = refs_bytes.split_at((2 * counts.refs as usize).min(refs_bytes.len()));
+        let (refs_bytes, pad) = refs_bytes.split_at((counts.refs as usize).saturating_mul(2).min(refs_bytes.len()));
         if let Some(i) = pad.iter().position(|&b| b != 0) {
-            return Err(BlobError::ReservedByte { offset: blob.len() - pad.len() + i });
+            // The padding ends the blob, so its offset is in range.
+            return Err(BlobError::ReservedByte { offset: blob.len().saturating_sub(pad.len()).saturating_add(i) });
         }
         let refs = bytemuck::try_cast_slice(refs_bytes).map_err(|_| BlobError::Misaligned)?;
         let view = Self { counts, obstacles, pieces, verts, start, refs };
@@ -207,7 +209,9 @@ impl<'a> MapView<'a> {
                 return Err(BlobError::UnknownKind { obstacle, code: r.kind });
             }
             if r.reserved0 != 0 || r.reserved1 != 0 {
-                return Err(BlobError::ReservedByte { offset: BLOB_HEADER_LEN + COUNTS_LEN + 8 * o });
+                return Err(BlobError::ReservedByte {
+                    offset: o.saturating_mul(8).saturating_add(BLOB_HEADER_LEN + COUNTS_LEN),
+                });
             }
             if r.piece_count == 0 {
                 return Err(BlobError::EmptyObstacle { obstacle });
@@ -222,11 +226,24 @@ impl<'a> MapView<'a> {
         }
         // Pieces: true outlines packed first, buffered ones after, in order.
         let (mut true_next, mut buf_next) = (0u32, c.true_vertices);
-        let mut run =
-            self.obstacles.iter().enumerate().flat_map(|(o, r)| core::iter::repeat_n(o, r.piece_count as usize));
+        // Obstacles own consecutive runs of `piece_count` pieces: walk the
+        // runs beside the pieces (by hand, so that no count can overflow).
+        let mut runs = (0..self.obstacles.len()).zip(self.obstacles.iter().map(|r| r.piece_count));
+        let mut current = None;
         for (i, r) in self.pieces.iter().enumerate() {
             let piece = i as u16;
-            let owner = run.next().unwrap_or(usize::MAX);
+            let owner = loop {
+                match current {
+                    Some((o, left)) if left > 0 => {
+                        current = Some((o, left - 1));
+                        break o;
+                    }
+                    _ => match runs.next() {
+                        Some(run) => current = Some(run),
+                        None => break usize::MAX,
+                    },
+                }
+            };
             if r.obstacle as u32 >= c.obstacles {
                 return Err(BlobError::ObstacleOutOfRange { piece, obstacle: r.obstacle });
             }
@@ -259,7 +276,7 @@ impl<'a> MapView<'a> {
             return Err(BlobError::VertexRange { piece });
         };
         if let Some(v) = tv.iter().position(|p| !p.in_range()) {
-            return Err(BlobError::CoordinateOutOfRange { vertex: r.true_start + v as u32 });
+            return Err(BlobError::CoordinateOutOfRange { vertex: r.true_start.saturating_add(v as u32) });
         }
         let shape = Convex::new(tv).map_err(|error| bad(MapError::BadPiece { index: 0, error }))?;
         if (kind == Some(ObstacleKind::Wall)) != shape.is_wall() {
@@ -275,7 +292,8 @@ impl<'a> MapView<'a> {
         if Rect::of_points(bv) != Some(r.bbox()) {
             return Err(BlobError::BoxMismatch { piece });
         }
-        if r.seams >> shape.edge_count() != 0 {
+        // A piece has at most 24 edges; `checked_shr` keeps a 32-bit shift total.
+        if r.seams.checked_shr(shape.edge_count() as u32).unwrap_or(0) != 0 {
             return Err(BlobError::SeamMismatch { piece });
         }
         Ok(())
@@ -304,14 +322,15 @@ impl<'a> MapView<'a> {
             }
         }
         let grid = self.grid();
-        let cells = c.cols as usize * c.rows as usize;
+        let cells = (c.cols as usize).checked_mul(c.rows as usize).ok_or(BlobError::SizeMismatch)?;
         if self.start.first() != Some(&0) || self.start.get(cells) != Some(&c.refs) {
             return Err(BlobError::GridStart { cell: 0 });
         }
         let mut expected = 0u64;
         for r in self.pieces {
             let (x0, y0, x1, y1) = grid.cell_range(r.bbox());
-            expected += (x1 - x0 + 1) as u64 * (y1 - y0 + 1) as u64;
+            let span = |lo: u16, hi: u16| u64::from(hi.saturating_sub(lo)) + 1;
+            expected = expected.saturating_add(span(x0, x1) * span(y0, y1));
         }
         if expected != c.refs as u64 {
             return Err(BlobError::GridCoverage);
@@ -413,8 +432,8 @@ impl MapSource for MapView<'_> {
     #[inline]
     fn piece(&self, id: u16) -> Option<Piece<'_>> {
         let r = self.pieces.get(id as usize)?;
-        let tv = self.verts.get(r.true_start as usize..r.true_start as usize + r.true_len as usize)?;
-        let bv = self.verts.get(r.buf_start as usize..r.buf_start as usize + r.buf_len as usize)?;
+        let tv = self.verts.get(r.true_start as usize..(r.true_start as usize).checked_add(r.true_len as usize)?)?;
+        let bv = self.verts.get(r.buf_start as usize..(r.buf_start as usize).checked_add(r.buf_len as usize)?)?;
         Some(Piece {
             id,
             obstacle: r.obstacle,

@@ -338,8 +338,10 @@ impl<'a> Scenario<'a> {
     }
 
     fn mount_unchecked(&self, i: usize) -> Mount {
-        let o = i * MOUNT_LEN;
-        let at = |k| u32_at(self.mounts, o + k) as i32;
+        // i < 255 (the header's count): the offsets are in range; saturating
+        // keeps an out-of-range i a read past the end (0), not a wrap.
+        let o = i.saturating_mul(MOUNT_LEN);
+        let at = |k| u32_at(self.mounts, o.saturating_add(k)) as i32;
         Mount { x_mm: at(0), y_mm: at(4), heading_mdeg: at(8) }
     }
 

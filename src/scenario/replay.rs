@@ -248,7 +248,7 @@ impl<'s> Bench<'s> {
             return;
         }
         self.ping.set(Some(Ping { record: i, edge: r.echo_us.map(|e| now.wrapping_add(e)) }));
-        self.next.set(i + 1);
+        self.next.set(i.saturating_add(1));
     }
 
     fn stop(&self) {
@@ -288,6 +288,13 @@ pub struct AddrLine<'b, 's> {
     bit: u8,
 }
 
+impl AddrLine<'_, '_> {
+    /// This line's bit of the address (none for a line past the eighth).
+    fn mask(&self) -> u8 {
+        1u8.checked_shl(u32::from(self.bit)).unwrap_or(0)
+    }
+}
+
 impl ErrorType for InitLine<'_, '_> {
     type Error = Infallible;
 }
@@ -324,12 +331,12 @@ impl ErrorType for AddrLine<'_, '_> {
 
 impl OutputPin for AddrLine<'_, '_> {
     fn set_low(&mut self) -> Result<(), Infallible> {
-        self.bench.addr.set(self.bench.addr.get() & !(1 << self.bit));
+        self.bench.addr.set(self.bench.addr.get() & !self.mask());
         Ok(())
     }
 
     fn set_high(&mut self) -> Result<(), Infallible> {
-        self.bench.addr.set(self.bench.addr.get() | (1 << self.bit));
+        self.bench.addr.set(self.bench.addr.get() | self.mask());
         Ok(())
     }
 }
