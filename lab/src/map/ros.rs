@@ -231,7 +231,7 @@ fn read_pgm(b: &[u8]) -> Result<Image, String> {
     if maxval > 255 {
         return Err(format!("unsupported image depth: 16-bit PGM (maxval {maxval}); map_server maps are 8-bit"));
     }
-    let n = width.checked_mul(height).filter(|&n| n <= 1 << 28).ok_or("PGM header: image too large")?;
+    let n = width.checked_mul(height).filter(|&n| n <= MAX_CELLS).ok_or_else(|| too_large("PGM", width, height))?;
     let scale = |v: usize| ((v * 255 + maxval / 2) / maxval) as u8;
     // Reserve no more than the file could hold: a lying header must not make us allocate.
     let mut value = Vec::with_capacity(n.min(b.len()));
@@ -278,10 +278,24 @@ fn pgm_token(b: &[u8], pos: &mut usize) -> Option<usize> {
     std::str::from_utf8(&b[start..*pos]).ok()?.parse().ok()
 }
 
+/// The most cells an image may have: 8192 × 8192, far beyond any map the
+/// firmware can hold, and a bound on what a lying header can make us
+/// allocate (a PNG's decoded size is not limited by its file's).
+pub const MAX_CELLS: usize = 1 << 26;
+
+fn too_large(what: &str, width: usize, height: usize) -> String {
+    format!("{what} header: {width}x{height} is too large (at most {MAX_CELLS} cells)")
+}
+
 fn read_png(b: &[u8]) -> Result<Image, String> {
     let mut dec = png::Decoder::new(b);
     dec.set_transformations(png::Transformations::EXPAND);
     let mut reader = dec.read_info().map_err(|e| format!("PNG: {e}"))?;
+    // Before the buffer is allocated: the header says what it likes.
+    let (w, h) = (reader.info().width as usize, reader.info().height as usize);
+    if w.checked_mul(h).is_none_or(|n| n > MAX_CELLS) {
+        return Err(too_large("PNG", w, h));
+    }
     let depth = reader.info().bit_depth;
     if depth == png::BitDepth::Sixteen {
         return Err("unsupported image depth: 16-bit PNG; map_server maps are 8-bit".into());
@@ -422,6 +436,16 @@ mod tests {
         assert_eq!(classify(&raw, 0, None), Cell::Free);
         assert_eq!(classify(&raw, 255, None), Cell::Unknown);
         assert_eq!(classify(&raw, 50, None), Cell::Unknown);
+    }
+
+    /// Found by the `ros_map` fuzz target: a PNG whose header claims
+    /// 7 680 × 1 073 741 888 pixels made the decoder's buffer allocation abort.
+    #[test]
+    fn a_png_header_claiming_a_huge_image_is_refused_before_allocating() {
+        let e = decode_image(include_bytes!("../../tests/data/huge-header.png")).unwrap_err();
+        assert!(e.contains("PNG header: 7680x1073741888 is too large"), "{e}");
+        let e = read_pgm(b"P5 70000 70000 255\n").unwrap_err();
+        assert!(e.contains("PGM header: 70000x70000 is too large"), "{e}");
     }
 
     #[test]
