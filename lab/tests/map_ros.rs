@@ -356,7 +356,12 @@ fn bad_ros_maps_fail_clearly_and_write_nothing() {
     ros_fails("over-maxval", YAML, Some(("m.pgm", &over)), &["image:", "pixel 2 = 200 exceeds maxval 100"]);
     ros_fails("lying-p2", YAML, Some(("m.pgm", b"P2\n4000 4000\n255\n0 0 0\n")), &["image:", "P2 data: pixel 3"]);
     // A header past the 2^26-cell limit is refused before any pixel is read or a buffer allocated.
-    ros_fails("huge-p2", YAML, Some(("m.pgm", b"P2\n16000 16000\n255\n0 0 0\n")), &["image:", "PGM header: 16000x16000 is too large"]);
+    ros_fails(
+        "huge-p2",
+        YAML,
+        Some(("m.pgm", b"P2\n16000 16000\n255\n0 0 0\n")),
+        &["image:", "PGM header: 16000x16000 is too large"],
+    );
     // Larger than the compiler's capacity (32 768): 34 596 separate occupied cells.
     let dots = pgm(372, 372, |c, r| if c % 2 == 0 && r % 2 == 0 { 0 } else { 254 });
     ros_fails("capacity", YAML, Some(("m.pgm", &dots)), &["exceeds the compiler's capacity", "34596 obstacles"]);
