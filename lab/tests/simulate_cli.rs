@@ -113,9 +113,14 @@ fn json_report_has_every_figure_in_range() {
         }
     }
     // Lost counts, in both places they are reported.
-    for k in ["raised", "cleared", "cycles_lost"] {
+    for k in ["raised", "cleared", "cycles_lost", "recoveries"] {
         u(&v, &format!("lost.{k}"));
     }
+    assert_eq!(v["lost"]["recoveries"], v["ekf"]["recoveries"]);
+    // A recovery happens only while lost.
+    assert!(u(&v, "lost.recoveries") <= u(&v, "lost.cycles_lost"));
+    let off = simulate(&["--map", s(&map), "--seed", "3", "--distance-m", "20", "--no-recovery"]);
+    assert_eq!(u(&off, "lost.recoveries"), 0);
     assert_eq!(v["lost"]["raised"], v["ekf"]["lost_raised"]);
     assert_eq!(v["lost"]["cleared"], v["ekf"]["lost_cleared"]);
     assert_eq!(v["lost"]["cycles_lost"], v["ekf"]["cycles_lost"]);

@@ -17,6 +17,7 @@
 //! ```
 
 use super::model::{compose, range_model, wrap, Motion, MountM, Target};
+use super::recovery::{Found, Recent, RecoveryConfig};
 use crate::f32math::sqrt;
 
 /// Filter settings.
@@ -76,6 +77,10 @@ pub struct EkfConfig {
     /// gate widens until readings validate again (1: off; odometry alone
     /// still grows it as the robot moves).
     pub lost_inflation: f32,
+    /// While lost, the pose correction the last readings agree on is
+    /// looked for and taken ([`super::recovery`]; `RecoveryConfig::OFF`:
+    /// never).
+    pub recovery: RecoveryConfig,
 }
 
 impl EkfConfig {
@@ -107,6 +112,7 @@ impl EkfConfig {
         lost_rate_drop: 0.5,
         lost_rate_margin: 0.25,
         lost_inflation: 1.0,
+        recovery: RecoveryConfig::DEFAULT,
     };
 }
 
@@ -178,6 +184,10 @@ pub struct Ekf {
     lost: bool,
     lost_count: u32,
     cycles_lost: u32,
+    /// The last readings, for recovery.
+    recent: Recent,
+    recoveries: u32,
+    last_recovery: Option<Found>,
 }
 
 type M3 = [[f32; 3]; 3];
@@ -227,6 +237,9 @@ impl Ekf {
             lost: false,
             lost_count: 0,
             cycles_lost: 0,
+            recent: Recent::new(),
+            recoveries: 0,
+            last_recovery: None,
         })
     }
 
@@ -279,6 +292,7 @@ impl Ekf {
         p[0][1] += cross;
         p[1][0] += cross;
         p[2][2] += q[2];
+        self.recent.carry(a, b);
         self.x = next;
         self.condition();
         Ok(())
@@ -307,6 +321,7 @@ impl Ekf {
         }
         let nis = nu * nu / s;
         self.cycle.tested = self.cycle.tested.saturating_add(1);
+        self.recent.push(hj, nu, s2);
         if nis.is_nan() || nis > self.cfg.gate {
             return Update::Gated { innovation: nu, nis };
         }
@@ -320,9 +335,10 @@ impl Ekf {
             }
         }
         let a = mul_t(&mul(&ikh, &self.p), &ikh);
+        let dx = [k[0] * nu, k[1] * nu, k[2] * nu];
         let mut next = self.x;
-        for (xi, ki) in next.iter_mut().zip(k) {
-            *xi += ki * nu;
+        for (xi, d) in next.iter_mut().zip(dx) {
+            *xi += d;
         }
         next[2] = wrap(next[2]);
         if !in_range(&next) || !a.iter().flatten().all(|v| v.is_finite()) {
@@ -336,6 +352,7 @@ impl Ekf {
             }
         }
         self.x = next;
+        self.recent.shift(dx);
         self.condition();
         Update::Accepted { innovation: nu, nis }
     }
@@ -343,6 +360,7 @@ impl Ekf {
     /// Ends a ring cycle: the lost monitor looks at the cycle's gate counts.
     /// Returns them.
     pub fn end_cycle(&mut self) -> CycleUpdates {
+        self.recent.rebase();
         let c = self.cycle;
         self.cycle = CycleUpdates::default();
         let sigma = sqrt(self.p[0][0] + self.p[1][1]);
@@ -380,6 +398,9 @@ impl Ekf {
             self.lost_count = self.lost_count.saturating_add(1);
         }
         if self.lost {
+            self.recover();
+        }
+        if self.lost {
             self.cycles_lost = self.cycles_lost.saturating_add(1);
             let f = self.cfg.lost_inflation;
             for row in self.p.iter_mut() {
@@ -390,6 +411,51 @@ impl Ekf {
             self.condition();
         }
         c
+    }
+
+    /// Looks for the correction the last readings agree on and takes it:
+    /// the state moves, the covariance becomes what those readings fix
+    /// (but no tighter than the search's grid), and the readings follow.
+    /// Not inlined: its search's frame is on the stack only while lost.
+    #[inline(never)]
+    fn recover(&mut self) {
+        let Some(found) = self.recent.search(&self.cfg.recovery) else { return };
+        let mut next = self.x;
+        for (xi, d) in next.iter_mut().zip(found.dx) {
+            *xi += d;
+        }
+        next[2] = wrap(next[2]);
+        if !in_range(&next) {
+            return;
+        }
+        let g = &self.cfg.recovery;
+        let floor = [g.step_m * g.step_m, g.step_m * g.step_m, g.step_rad * g.step_rad];
+        let mut p = [[0.0f32; 3]; 3];
+        for i in 0..3 {
+            p[i][i] = found.covariance[i][i].max(floor[i]);
+        }
+        self.x = next;
+        self.p = p;
+        self.recent.shift(found.dx);
+        self.recoveries = self.recoveries.saturating_add(1);
+        self.last_recovery = Some(found);
+        self.bad_run = 0;
+        self.condition();
+    }
+
+    /// How many times a lost filter took a recovered pose.
+    pub fn recoveries(&self) -> u32 {
+        self.recoveries
+    }
+
+    /// The readings recovery searches.
+    pub fn recent(&self) -> &Recent {
+        &self.recent
+    }
+
+    /// The last correction a recovery took.
+    pub fn last_recovery(&self) -> Option<Found> {
+        self.last_recovery
     }
 
     /// Whether the filter is lost now.

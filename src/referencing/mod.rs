@@ -7,6 +7,7 @@
 //! | [`verdict`] | a reading against its prediction: confirmed, unknown obstacle, removed or missed, unpredicted echo, nothing as predicted |
 //! | [`model`] | plane and point range models and the odometry motion model, with analytic Jacobians |
 //! | [`ekf`] | the EKF over (x, y, φ): χ² gate, κ-weighted variance, Joseph form, lost state |
+//! | [`recovery`] | a lost filter's way back: the last readings linearised, and the correction most of them agree on |
 //! | [`threshold`] | the paper's threshold method |
 //! | [`f32math`] | (re-exported from the crate root, where the window uses it too) sin, cos and √ in single precision |
 //!
@@ -17,12 +18,14 @@
 pub mod ekf;
 pub use crate::f32math;
 pub mod model;
+pub mod recovery;
 mod referencer;
 pub mod threshold;
 pub mod verdict;
 
 pub use ekf::{CycleUpdates, Ekf, EkfConfig, EkfError, Update};
 pub use model::{compose, range_model, sensor_position, wrap, Motion, MountM, Target};
+pub use recovery::{Found, Recent, RecoveryConfig};
 pub use referencer::{observe, pose_mm, ReadingReport, Referencer, ReferencerError};
 pub use threshold::{Threshold, ThresholdConfig};
 pub use verdict::{judge, Reading, Verdict, VerdictConfig, VerdictCounts};

@@ -219,10 +219,20 @@ fn main() -> ! {
     metric("insns_per_kappa", kappa_cost(&syst, per_tick, &net) as u64);
 
     // Stack of a whole ring cycle (16 × odometry, prediction, verdict, EKF
-    // update, then the lost monitor), below this frame.
+    // update, then the lost monitor), below this frame. The filter's state
+    // (the EKF with the readings its recovery keeps) lives for the whole run
+    // in the caller, as on a robot: it is made here and its size reported
+    // apart.
+    let x = [poses[0].x_mm / 1000.0, poses[0].y_mm / 1000.0, poses[0].heading_rad];
+    let Ok(ekf) = Ekf::new([x[0] + 0.03, x[1], x[2]], [0.05, 0.05, 0.03], EkfConfig::DEFAULT) else {
+        hprintln!("FAIL: the filter refused its start");
+        exit(false);
+    };
+    let mut filter = Referencer::new(ekf, VerdictConfig::POLAROID);
+    metric("filter_state_bytes", core::mem::size_of::<Referencer>() as u64);
     let (_, bottom) = stack_bounds();
     let sp = paint_free_stack(bottom);
-    let cycle_ok = ring_cycle(&depot, &net, &params, &poses[0]);
+    let cycle_ok = ring_cycle(&depot, &net, &params, &poses[0], &mut filter);
     let stack = sp - first_unpainted(bottom, sp);
     if !cycle_ok || stack == 0 {
         hprintln!("FAIL: ring cycle failed or measured no stack");
@@ -250,20 +260,21 @@ fn main() -> ! {
     exit(ok);
 }
 
-/// One whole ring cycle through the core's `Referencer`, never inlined so
-/// that its frames lie below the caller's stack pointer. Each reading is the
-/// prediction from the true pose 30 mm off the estimate.
+/// One whole ring cycle through the core's `Referencer` `r`, never inlined
+/// so that its frames lie below the caller's stack pointer. Each reading is
+/// the prediction from the true pose, 30 mm off the filter's estimate.
 #[inline(never)]
-fn ring_cycle(map: &MapView<'_>, net: &CredenceNet<'_>, params: &PredictParams, pose: &Pose) -> bool {
-    let x = [pose.x_mm / 1000.0, pose.y_mm / 1000.0, pose.heading_rad];
-    let Ok(ekf) = Ekf::new([x[0] + 0.03, x[1], x[2]], [0.05, 0.05, 0.03], EkfConfig::DEFAULT) else {
-        return false;
-    };
+fn ring_cycle(
+    map: &MapView<'_>,
+    net: &CredenceNet<'_>,
+    params: &PredictParams,
+    pose: &Pose,
+    r: &mut Referencer,
+) -> bool {
     let mut truth: [Option<Prediction>; 16] = [None; 16];
     if predict_ring(map, pose, &PIONEER16, params, net, &mut truth).is_err() {
         return false;
     }
-    let mut r = Referencer::new(ekf, VerdictConfig::POLAROID);
     for (mount, p) in PIONEER16.iter().zip(truth.iter()) {
         let reading = p.map_or(Reading::NoEcho, |p| Reading::Echo { range_mm: p.range_mm });
         if r.odometry(&Motion { dx: 0.0, dy: 0.0, dphi: 0.0 }).is_err()

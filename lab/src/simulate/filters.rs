@@ -9,8 +9,8 @@ use echoloc::driver::SpeedOfSound;
 use echoloc::map::StandardMap;
 use echoloc::predict::{Mount, PredictParams};
 use echoloc::referencing::{
-    observe, pose_mm, Ekf, EkfConfig, Motion, MountM, Reading, Referencer, Threshold, ThresholdConfig, Update, Verdict,
-    VerdictConfig, VerdictCounts,
+    observe, pose_mm, Ekf, EkfConfig, Motion, MountM, Reading, RecoveryConfig, Referencer, Threshold, ThresholdConfig,
+    Update, Verdict, VerdictConfig, VerdictCounts,
 };
 use echoloc::scenario::{Header, Record};
 use echoloc::window::WindowParams;
@@ -81,6 +81,8 @@ pub struct Trace {
     pub lost_cleared: u32,
     /// Cycles it ended lost.
     pub cycles_lost: u32,
+    /// Times a lost filter took a recovered pose.
+    pub recoveries: u32,
     /// Readings that moved the threshold method's pose.
     pub threshold_corrections: u32,
     /// Distance driven, m: along the truth where every reading has one,
@@ -160,6 +162,9 @@ pub struct Start {
     pub pose: [f32; 3],
     /// Standard deviations.
     pub sigma: [f32; 3],
+    /// Whether a lost EKF may recover (`echoloc::referencing::recovery`);
+    /// off only to measure what recovery does.
+    pub recovery: bool,
 }
 
 /// A scenario's records as steps: ranges from the echo times by the
@@ -217,7 +222,11 @@ pub fn run(
     let net = CredenceNet::shipped();
     let params = predict_params(map.buffer_mm());
     let verdicts = VerdictConfig::POLAROID;
-    let ekf = Ekf::new(start.pose, start.sigma, EkfConfig::DEFAULT).map_err(|e| format!("start: {e:?}"))?;
+    let mut cfg = EkfConfig::DEFAULT;
+    if !start.recovery {
+        cfg.recovery = RecoveryConfig::OFF;
+    }
+    let ekf = Ekf::new(start.pose, start.sigma, cfg).map_err(|e| format!("start: {e:?}"))?;
     let mut ekf = Referencer::new(ekf, verdicts);
     let mut thr = Threshold::new(start.pose, ThresholdConfig::DEFAULT);
     let mut dr = f64x3(start.pose);
@@ -283,6 +292,7 @@ pub fn run(
     // Every time it became lost but the last was cleared, and that one too unless it is still lost.
     t.lost_cleared = t.lost_count - u32::from(ekf.ekf.is_lost());
     t.cycles_lost = ekf.ekf.cycles_lost();
+    t.recoveries = ekf.ekf.recoveries();
     t.threshold_corrections = thr.corrections();
     t.duration_s = t.times.last().copied().unwrap_or(0.0) - t.times.first().copied().unwrap_or(0.0);
     Ok(t)

@@ -57,6 +57,9 @@ pub struct SimulateArgs {
     /// the reference: `echoloc-lab replay` on it gives this run's figures.
     #[arg(long)]
     log: Option<PathBuf>,
+    /// The EKF without recovery while lost, to measure what it does.
+    #[arg(long = "no-recovery")]
+    no_recovery: bool,
 }
 
 /// κ at and above which the predictor counts as confident when its
@@ -96,7 +99,8 @@ pub fn simulate_cmd(a: &SimulateArgs) -> Result<String, LabError> {
     let records = to_records(&run)?;
     let header = header(&run, map_crc, &records);
     let steps = filters::steps_of_records(&header, &records).map_err(LabError)?;
-    let trace = filters::run(&map, &mounts, &start_of(&header), &steps, &mut |f| bar.set(0.5 + 0.5 * f))
+    let start = filters::Start { recovery: !a.no_recovery, ..start_of(&header) };
+    let trace = filters::run(&map, &mounts, &start, &steps, &mut |f| bar.set(0.5 + 0.5 * f))
         .map_err(|e| LabError(format!("{}: {e}", a.map.display())))?;
     bar.finish();
     let mut report = report(&trace, Some(&run));
@@ -127,7 +131,7 @@ pub fn simulate_cmd(a: &SimulateArgs) -> Result<String, LabError> {
 
 /// Where a scenario's filters start.
 pub fn start_of(h: &Header) -> filters::Start {
-    filters::Start { pose: h.start, sigma: h.start_sigma }
+    filters::Start { pose: h.start, sigma: h.start_sigma, recovery: true }
 }
 
 /// The run as a plain log: each step's time, transducer and range (what the
@@ -280,6 +284,7 @@ pub fn report(t: &Trace, run: Option<&SimRun>) -> Value {
                 "lost_raised": t.lost_count,
                 "lost_cleared": t.lost_cleared,
                 "cycles_lost": t.cycles_lost,
+                "recoveries": t.recoveries,
                 "covariance": t.covariance.map(|r| r.map(f64::from)),
             })
         ),
@@ -292,7 +297,7 @@ pub fn report(t: &Trace, run: Option<&SimRun>) -> Value {
             "inconclusive": v.inconclusive,
             "confirmed_fraction": ratio(u64::from(v.confirmed), u64::from(v.total())),
         },
-        "lost": {"raised": t.lost_count, "cleared": t.lost_cleared, "cycles_lost": t.cycles_lost},
+        "lost": {"raised": t.lost_count, "cleared": t.lost_cleared, "cycles_lost": t.cycles_lost, "recoveries": t.recoveries},
     });
     let Some(run) = run else { return out };
     // Detection against the simulator's truth: an echo from an unmapped

@@ -1,8 +1,9 @@
 //! The cost of the EKF on QEMU's `mps2-an386` (Cortex-M4F): one odometry
 //! prediction, one range update (plane and point targets, accepted and
 //! gated), and one ring cycle of the Pioneer ring (16 predictions and 16
-//! updates and the lost monitor), in instructions, with the stack one
-//! update uses. Prediction of the readings themselves is the predictor's
+//! updates and the lost monitor), and one recovery search over a full
+//! buffer of readings, in instructions, with the stack one update and one
+//! search use, and the filter's size. Prediction of the readings themselves is the predictor's
 //! cost, measured by the main firmware.
 //!
 //! Each figure times `N` calls with SysTick (deterministic under the
@@ -19,7 +20,10 @@ use core::hint::black_box;
 use cortex_m_rt::entry;
 use cortex_m_semihosting::hprintln;
 use echoloc::predict::PIONEER16;
-use echoloc::referencing::{Ekf, EkfConfig, Motion, MountM, Target, Update};
+use echoloc::referencing::recovery::RECENT;
+use echoloc::referencing::{
+    compose, range_model, Ekf, EkfConfig, Motion, MountM, Recent, RecoveryConfig, Target, Update,
+};
 use qemu_mps2_an386::{
     calibrate, elapsed, exit, first_unpainted, paint_free_stack, stack_bounds, start_systick, ticks,
 };
@@ -148,8 +152,51 @@ fn main() -> ! {
     if stack == 0 {
         ok = false;
     }
+    // Recovery while lost: the search over a full buffer of readings,
+    // taken on a drive past the corridor's walls and corner by an estimate
+    // (0.2, 0.15) m off the truth. It runs once per lost cycle.
+    let mut recent = Recent::new();
+    let mut x = [0.0f32; 3];
+    for i in 0..RECENT as u32 {
+        let m = mounts[(i * 5 % 16) as usize];
+        let t = target(i);
+        let truth = [x[0] + 0.2, x[1] + 0.15, x[2]];
+        if let (Some((h, hj)), Some((z, _))) = (range_model(&x, m, &t), range_model(&truth, m, &t)) {
+            recent.push(hj, z - h, 0.015 * 0.015);
+        }
+        let (next, f, _) = compose(&x, &u);
+        recent.carry(f[0][2], f[1][2]);
+        x = next;
+    }
+    const S: u32 = 4;
+    let t0 = ticks(&syst);
+    let mut found = None;
+    for _ in 0..S {
+        found = black_box(black_box(&mut recent).search(&RecoveryConfig::DEFAULT));
+    }
+    let search = elapsed(t0, ticks(&syst)) * per_tick / S;
+    hprintln!("metric ekf_recovery_search_insns {} ({} readings)", search, recent.len());
+    match found {
+        Some(f) if (f.dx[0] - 0.2).abs() < 0.02 && (f.dx[1] - 0.15).abs() < 0.02 => {}
+        other => {
+            hprintln!("FAIL: the recovery search found {:?}, not the (0.2, 0.15) m planted", other.map(|f| f.dx));
+            ok = false;
+        }
+    }
+    let (_, bottom) = stack_bounds();
+    let sp = paint_free_stack(bottom);
+    black_box(search_call(&mut recent));
+    let stack = sp - first_unpainted(bottom, sp);
+    hprintln!("metric ekf_recovery_stack_bytes {}", stack);
+    hprintln!("metric ekf_state_bytes {}", core::mem::size_of::<Ekf>());
     hprintln!("budget: <= 2000 instructions per reading update: {}", if update <= 2000 { "met" } else { "MISSED" });
     exit(ok);
+}
+
+/// One recovery search through a call that is never inlined.
+#[inline(never)]
+fn search_call(r: &mut Recent) -> Option<echoloc::referencing::Found> {
+    black_box(r).search(&RecoveryConfig::DEFAULT)
 }
 
 /// One update through a call that is never inlined, so its frame lies below
