@@ -15,9 +15,7 @@
 #[path = "common/referencing_oracle.rs"]
 mod oracle;
 
-use echoloc::referencing::{
-    compose, range_model, Ekf, EkfConfig, Motion, MountM, Recent, RecoveryConfig, Target, Update,
-};
+use echoloc::referencing::{compose, range_model, Ekf, EkfConfig, Motion, Recent, RecoveryConfig, Target, Update};
 use oracle::*;
 
 /// The pose that `steps` of odometry take to `to`: each step undone in f64
@@ -66,8 +64,7 @@ fn a_carried_jacobian_predicts_the_range_from_the_corrected_old_pose() {
         let t = random_target(&mut rng, x0);
         let x0f = [x0[0] as f32, x0[1] as f32, x0[2] as f32];
         let Some((h0, hj)) = range_model(&x0f, mount32(m), &t) else { continue };
-        // The odometry after the reading, through the filter's own compose
-        // for the Jacobians, and the reading's own pose carried in f32.
+        // The odometry after the reading.
         let n = 1 + (rng.next_u64() % 20) as usize;
         let steps: Vec<Motion> = (0..n)
             .map(|_| Motion {
@@ -76,25 +73,24 @@ fn a_carried_jacobian_predicts_the_range_from_the_corrected_old_pose() {
                 dphi: rng.range(-0.15, 0.15) as f32,
             })
             .collect();
+        // The filter's own compose drives the estimate and gives the
+        // Jacobian columns the carry takes.
         let mut x = x0f;
-        let mut recent = Recent::new();
-        // δ, and the reading the oracle says the corrected old pose gives.
-        let d = [rng.range(-0.05, 0.05), rng.range(-0.05, 0.05), rng.range(-0.01, 0.01)];
-        let mut xs = Vec::new();
+        let mut columns = Vec::new();
         for u in &steps {
-            let (next, _, _) = compose(&x, u);
-            xs.push(next);
+            let (next, f, _) = compose(&x, u);
+            columns.push((f[0][2], f[1][2]));
             x = next;
         }
+        // δ, and the reading the oracle says the corrected old pose gives.
+        let d = [rng.range(-0.05, 0.05), rng.range(-0.05, 0.05), rng.range(-0.01, 0.01)];
         let xk = x64(&x);
         let old = undo([xk[0] + d[0], xk[1] + d[1], xk[2] + d[2]], &steps);
         let z = h64(&old, m, &T64::of(&t));
+        let mut recent = Recent::new();
         recent.push(hj, (z - h0 as f64) as f32, r);
-        let mut x = x0f;
-        for u in &steps {
-            let (next, f, _) = compose(&x, u);
-            recent.carry(f[0][2], f[1][2]);
-            x = next;
+        for (a, b) in columns {
+            recent.carry(a, b);
         }
         let df = [d[0] as f32, d[1] as f32, d[2] as f32];
         assert_eq!(recent.agreeing(df, &cfg), 1, "case {case}: the carried model misses δ {d:?}");
@@ -152,7 +148,8 @@ fn drive(rng: &mut Rng, e0: [f32; 3], d: [f64; 3], steps: &[Motion], clutter: us
             recent.push(hj, (z - h as f64) as f32, 0.015 * 0.015);
         }
         if let Some(u) = steps.get(k) {
-            recent.carry(compose(ek, u).1[0][2], compose(ek, u).1[1][2]);
+            let f = compose(ek, u).1;
+            recent.carry(f[0][2], f[1][2]);
             let (s, c) = (truth[2]).sin_cos();
             let (dx, dy) = (u.dx as f64, u.dy as f64);
             truth = [truth[0] + c * dx - s * dy, truth[1] + s * dx + c * dy, truth[2] + u.dphi as f64];
@@ -228,7 +225,7 @@ fn truth_cycle(ekf: &mut Ekf, truth: [f64; 3]) -> Vec<Update> {
     seen.iter()
         .map(|&(i, t)| {
             let z = h64(&truth, ring[i], &T64::of(&targets[t]));
-            ekf.update(z as f32, 1.0, MountM { x: ring[i].0 as f32, y: ring[i].1 as f32 }, &targets[t])
+            ekf.update(z as f32, 1.0, mount32(ring[i]), &targets[t])
         })
         .collect()
 }

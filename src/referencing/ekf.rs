@@ -448,11 +448,6 @@ impl Ekf {
         self.recoveries
     }
 
-    /// The readings recovery searches.
-    pub fn recent(&self) -> &Recent {
-        &self.recent
-    }
-
     /// The last correction a recovery took.
     pub fn last_recovery(&self) -> Option<Found> {
         self.last_recovery

@@ -33,6 +33,8 @@
 //! assert_eq!((found.inliers, found.at_estimate), (12, 4));
 //! ```
 
+use crate::f32math::sqrt;
+
 /// How many readings are kept.
 pub const RECENT: usize = 64;
 
@@ -320,12 +322,11 @@ impl Recent {
         // (the grid's widened tolerance lets in readings that bias it).
         let (cov, dx) = self.least_squares(best.1, &wide)?;
         let k2 = cfg.k_sigma * cfg.k_sigma;
-        let exact = self.kept().iter().map(|e| k2 * e.r);
-        let mut tol = [0.0f32; RECENT];
-        for (t, v) in tol.iter_mut().zip(exact) {
-            *t = v;
+        let mut exact = [0.0f32; RECENT];
+        for (t, e) in exact.iter_mut().zip(self.kept()) {
+            *t = k2 * e.r;
         }
-        let (cov, dx) = self.least_squares(dx, &tol).unwrap_or((cov, dx));
+        let (cov, dx) = self.least_squares(dx, &exact).unwrap_or((cov, dx));
         let inliers = self.agreeing(dx, cfg);
         let enough = inliers >= cfg.min_inliers
             && inliers >= at_estimate.saturating_add(cfg.margin)
@@ -343,9 +344,7 @@ impl Recent {
             covariance: cov,
         })
     }
-}
 
-impl Recent {
     /// The weighted least-squares correction from the readings whose
     /// residual at `at` is within `tol2`, and its covariance
     /// (Σ Hᵀ R⁻¹ H)⁻¹; `None` when they do not fix all three coordinates.
@@ -378,10 +377,6 @@ fn current(q: &Pending, e: &Residual) -> ([f32; 3], f32) {
     let h2 = e.h[2] + e.h[0] * q.o[1] - e.h[1] * q.o[0];
     let nu = e.nu - e.h[0] * (q.a[0] + q.b[1]) - e.h[1] * (q.a[1] - q.b[0]) - e.h[2] * q.a[2];
     ([e.h[0], e.h[1], h2], nu)
-}
-
-fn sqrt(v: f32) -> f32 {
-    crate::f32math::sqrt(v)
 }
 
 /// Size of a correction, heading weighted by the grid's steps.
