@@ -6,8 +6,12 @@
 //! data file's CRC-32 and the float net's RMSE on them, both checked here
 //! against `docs/credence-data`.
 
-use echoloc::credence::net::{CredenceNet, QuantWeights, FLOAT_WEIGHTS, HIDDEN, SHIPPED_WEIGHTS, SIGMOID_TAIL};
+use echoloc::credence::net::{
+    CredenceNet, KappaBounds, QuantWeights, BOUND_R_SHIFT, BOUND_THETA_SHIFT, FLOAT_WEIGHTS, HIDDEN, SHIPPED_WEIGHTS,
+    SIGMOID_TAIL,
+};
 use echoloc::credence::{Credence, EchoGeometry, Kappa};
+use fixed::types::I16F16;
 
 /// The logistic function in f64 (std's exp).
 fn logistic(z: f64) -> f64 {
@@ -259,4 +263,99 @@ fn the_weights_header_matches_the_checked_in_data() {
     println!("pooled RMSE of FLOAT_WEIGHTS: {rmse:.6} (header {header_rmse})");
     // The header prints six decimals.
     assert!((rmse - header_rmse).abs() < 2e-6, "pooled RMSE {rmse} vs header {header_rmse}");
+}
+
+/// `may_reach` false must mean κ below τ, checked against the independent
+/// integer reference: every bin's corners and a lattice of 8 mm × 16 mdeg
+/// inside it (about 1.8 M points), the dense grid, the edge points and
+/// random points, each at several τ.
+#[test]
+fn kappa_bounds_never_skip_a_credible_echo() {
+    let lut = table();
+    let net = CredenceNet::shipped();
+    let bounds = net.bounds().expect("the shipped net has bounds");
+    assert_eq!(bounds, &KappaBounds::of(&SHIPPED_WEIGHTS));
+    let taus = [0u16, 1, 8192, 16384, 29491, 32767, 32768].map(Kappa::from_bits);
+    let lattice = (500..=5500 + 7).step_by(8).flat_map(|r: u32| (0..=45_000 + 15).step_by(16).map(move |t| (r, t)));
+    let corners = (0..=20u32).flat_map(|k| {
+        (0..=88u32).flat_map(move |m| {
+            let (r, t) = (500 + (k << BOUND_R_SHIFT), (m << BOUND_THETA_SHIFT) as i32);
+            [(r, t), (r + 255, t), (r, t + 511), (r + 255, t + 511)]
+        })
+    });
+    let (mut n, mut skipped) = (0u64, 0u64);
+    for (r, t) in lattice.chain(corners).chain(dense_grid()).chain(edge_points()).chain(random_points(100_000)) {
+        let kappa = Kappa::from_bits(kappa_ref(&SHIPPED_WEIGHTS, &lut, r, t));
+        let upper = u32::from(bounds.upper_255(r, t));
+        assert!(u32::from(kappa.to_bits()) * 255 <= upper << 15, "κ({r}, {t}) = {kappa} above its bound {upper}/255");
+        for tau in taus {
+            let echo = EchoGeometry { range_mm: r, theta_mdeg: t, delta_mdeg: 0 };
+            if !net.may_reach(&echo, tau) {
+                assert!(kappa < tau, "κ({r}, {t}) = {kappa} reaches τ = {tau} but was skipped");
+                skipped += 1;
+            }
+        }
+        n += 1;
+    }
+    assert!(n > 1_800_000, "{n} points");
+    // τ = 0 never skips; the others must skip somewhere, or the test says nothing.
+    assert!(skipped > n, "only {skipped} skips over {n} points");
+}
+
+/// The bounds are tight enough to matter: of the bins where no lattice point
+/// reaches 0.4, at most a few percent are not skipped at τ = 0.5 (the
+/// predictor's default).
+#[test]
+fn kappa_bounds_skip_most_bins_far_below_tau() {
+    let net = CredenceNet::shipped();
+    let tau = Kappa::from_num(0.5);
+    let (mut far_below, mut kept) = (0, 0);
+    for k in 0..20u32 {
+        for m in 0..88u32 {
+            let (r0, t0) = (500 + (k << BOUND_R_SHIFT), m << BOUND_THETA_SHIFT);
+            let max = (r0..(r0 + 256).min(5501))
+                .step_by(16)
+                .flat_map(|r| (t0..(t0 + 512).min(45_001)).step_by(32).map(move |t| (r, t as i32)))
+                .map(|(r, t)| net.kappa_at(r, t))
+                .max()
+                .expect("a bin has points");
+            if max < Kappa::from_num(0.4) {
+                far_below += 1;
+                let echo = EchoGeometry { range_mm: r0, theta_mdeg: t0 as i32, delta_mdeg: 0 };
+                kept += usize::from(net.may_reach(&echo, tau));
+            }
+        }
+    }
+    assert!(far_below > 500, "{far_below} bins far below τ");
+    assert!(kept * 20 <= far_below, "{kept} of {far_below} bins far below τ are not skipped");
+}
+
+proptest::proptest! {
+    /// Bounds of any weights hold: random nets (weights up to ±64, the
+    /// shipped net's steep unit too), random points.
+    #[test]
+    fn kappa_bounds_hold_for_random_weights(seed in proptest::prelude::any::<u64>(), steep in 0usize..HIDDEN) {
+        let mut s = seed | 1;
+        let mut next = move |scale: i64| {
+            s ^= s << 13;
+            s ^= s >> 7;
+            s ^= s << 17;
+            I16F16::from_bits((((s >> 11) as i64 % (2 * scale + 1)) - scale) as i32)
+        };
+        let mut w = SHIPPED_WEIGHTS;
+        for j in 0..HIDDEN {
+            w.w_hidden[j] = [next(64 << 16), next(64 << 16)];
+            w.b_hidden[j] = next(32 << 16);
+            w.w_out[j] = next(16 << 16);
+        }
+        w.w_hidden[steep][1] = next(6000 << 16);
+        w.b_out = next(8 << 16);
+        let lut = table();
+        let bounds = KappaBounds::of(&w);
+        for (r, t) in random_points(4000).into_iter().chain(edge_points()) {
+            let kappa = u32::from(kappa_ref(&w, &lut, r, t));
+            let upper = u32::from(bounds.upper_255(r, t));
+            proptest::prop_assert!(kappa * 255 <= upper << 15, "κ({}, {}) = {} above {}/255", r, t, kappa, upper);
+        }
+    }
 }

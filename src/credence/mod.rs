@@ -34,11 +34,23 @@ pub struct EchoGeometry {
 pub trait Credence {
     /// κ for an echo with this geometry.
     fn kappa(&self, echo: &EchoGeometry) -> Kappa;
+
+    /// Whether κ for this echo can be at least `tau`. `false` only where it
+    /// provably cannot, so that prediction may skip [`kappa`](Self::kappa)
+    /// there and answer the same. The default never skips.
+    fn may_reach(&self, echo: &EchoGeometry, tau: Kappa) -> bool {
+        let _ = (echo, tau);
+        true
+    }
 }
 
 impl<C: Credence + ?Sized> Credence for &C {
     fn kappa(&self, echo: &EchoGeometry) -> Kappa {
         (**self).kappa(echo)
+    }
+
+    fn may_reach(&self, echo: &EchoGeometry, tau: Kappa) -> bool {
+        (**self).may_reach(echo, tau)
     }
 }
 

@@ -144,27 +144,46 @@ pub struct FloatWeights {
 ///
 /// It ignores `delta_mdeg`: the paper's net (and its training data, taken
 /// square on to a long wall) has δ = 0; prediction applies its δ test apart.
+/// With [`KappaBounds`] for its weights (the shipped net has them) it tells
+/// prediction where κ cannot reach τ, so that the net need not run there.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct CredenceNet<'w> {
     weights: &'w QuantWeights,
+    bounds: Option<&'w KappaBounds>,
 }
 
+/// The bounds of [`SHIPPED_WEIGHTS`], computed by the compiler.
+pub static SHIPPED_BOUNDS: KappaBounds = KappaBounds::of(&SHIPPED_WEIGHTS);
+
 impl CredenceNet<'static> {
-    /// The net with the checked-in weights ([`SHIPPED_WEIGHTS`]).
+    /// The net with the checked-in weights ([`SHIPPED_WEIGHTS`]) and their
+    /// bounds ([`SHIPPED_BOUNDS`]).
     pub const fn shipped() -> Self {
-        Self { weights: &SHIPPED_WEIGHTS }
+        Self { weights: &SHIPPED_WEIGHTS, bounds: Some(&SHIPPED_BOUNDS) }
     }
 }
 
 impl<'w> CredenceNet<'w> {
-    /// A net with other weights (for instance retrained on a real transducer).
+    /// A net with other weights (for instance retrained on a real
+    /// transducer), without bounds: every candidate runs the net.
     pub const fn new(weights: &'w QuantWeights) -> Self {
-        Self { weights }
+        Self { weights, bounds: None }
+    }
+
+    /// The same net with bounds, which must be [`KappaBounds::of`] its
+    /// weights (bounds of other weights would skip echoes wrongly).
+    pub const fn with_bounds(self, bounds: &'w KappaBounds) -> Self {
+        Self { weights: self.weights, bounds: Some(bounds) }
     }
 
     /// The weights in use.
     pub const fn weights(&self) -> &'w QuantWeights {
         self.weights
+    }
+
+    /// The bounds in use, if any.
+    pub const fn bounds(&self) -> Option<&'w KappaBounds> {
+        self.bounds
     }
 
     /// κ for a range (mm) and an off-axis angle (millidegrees, either sign).
@@ -189,6 +208,10 @@ impl Credence for CredenceNet<'_> {
     fn kappa(&self, echo: &EchoGeometry) -> Kappa {
         self.kappa_at(echo.range_mm, echo.theta_mdeg)
     }
+
+    fn may_reach(&self, echo: &EchoGeometry, tau: Kappa) -> bool {
+        self.bounds.is_none_or(|b| b.may_reach(echo.range_mm, echo.theta_mdeg, tau))
+    }
 }
 
 /// The widening product of two `i32`.
@@ -199,30 +222,171 @@ fn mul(a: i32, b: i32) -> i64 {
 /// The two inputs as Q16.16 bits, exact (step 1 of the module docs); both
 /// lie within ±2¹⁷.
 fn inputs(range_mm: u32, theta_mdeg: i32) -> (i32, i32) {
-    let r = range_mm.clamp(R_MIN_MM, R_MAX_MM) as i32;
-    let t = theta_mdeg.unsigned_abs().min(THETA_MAX_MDEG) as i32;
-    let x0 = (r - R_CENTRE_MM) << (FRAC - R_SCALE_LOG2);
-    let x1 = (t - THETA_CENTRE_MDEG) << (FRAC - THETA_SCALE_LOG2);
-    (x0, x1)
+    (input_r(range_mm.clamp(R_MIN_MM, R_MAX_MM)), input_t(theta_mdeg.unsigned_abs().min(THETA_MAX_MDEG)))
 }
 
 /// σ(z) for a Q16.16 pre-activation, as Q0.16 in `0 ..= 2¹⁶` (step 3). The
 /// table arithmetic fits `u32`: a step's difference is below 2¹¹ and `f` below 2¹².
+/// Non-decreasing in `z` (the κ bounds rely on it). A `const fn`, so that the
+/// shipped net's [`KappaBounds`] are computed by the compiler.
 #[inline(always)]
-fn sigmoid_q16(z: i64) -> i32 {
-    let a = z.unsigned_abs().min(Z_CLAMP as u64) as u32;
+const fn sigmoid_q16(z: i64) -> i32 {
+    let abs = z.unsigned_abs();
+    let a = if abs < Z_CLAMP as u64 { abs as u32 } else { Z_CLAMP as u32 };
     let i = (a >> STEP_SHIFT) as usize;
     let f = a & ((1 << STEP_SHIFT) - 1);
-    let lo = u32::from(SIGMOID_TAIL[i].to_bits());
-    let u = match SIGMOID_TAIL.get(i + 1) {
-        Some(next) => lo - (((lo - u32::from(next.to_bits())) * f + (1 << (STEP_SHIFT - 1))) >> STEP_SHIFT),
-        None => lo,
+    let lo = SIGMOID_TAIL[i].to_bits() as u32;
+    let u = if i + 1 < SIGMOID_ENTRIES {
+        let next = SIGMOID_TAIL[i + 1].to_bits() as u32;
+        lo - (((lo - next) * f + (1 << (STEP_SHIFT - 1))) >> STEP_SHIFT)
+    } else {
+        lo
     } as i32;
     if z >= 0 {
         ONE_Q16 - u
     } else {
         u
     }
+}
+
+/// Range bins of [`KappaBounds`]: `(clamp(R) − R_MIN_MM) >> 8`, 256 mm each.
+pub const BOUND_R_SHIFT: u32 = 8;
+/// Angle bins of [`KappaBounds`]: `min(|θ|, THETA_MAX_MDEG) >> 9`, 0.512° each.
+pub const BOUND_THETA_SHIFT: u32 = 9;
+const BOUND_R_BINS: usize = ((R_MAX_MM - R_MIN_MM) >> BOUND_R_SHIFT) as usize + 1;
+const BOUND_THETA_BINS: usize = (THETA_MAX_MDEG >> BOUND_THETA_SHIFT) as usize + 1;
+
+/// Upper bounds of a net's κ over small boxes of (R, |θ|), so that
+/// prediction can skip the net where κ cannot reach its threshold τ
+/// ([`Credence::may_reach`]). Skipping changes no prediction: a candidate
+/// whose κ is below τ is passed over either way.
+///
+/// Each bound is proven, not sampled: the box's input intervals are carried
+/// through the net's own integer steps (each hidden pre-activation's extremes
+/// by the signs of its weights, then σ, which is non-decreasing, then each
+/// hidden unit at whichever end its output weight favours), and rounded up
+/// to 1/255. A table is 20 × 88 bytes; [`KappaBounds::of`] is a `const fn`,
+/// so a board builds one for its own weights at compile time.
+///
+/// ```
+/// use echoloc::credence::net::{CredenceNet, KappaBounds, SHIPPED_WEIGHTS};
+/// use echoloc::credence::{Credence, EchoGeometry, Kappa};
+///
+/// static BOUNDS: KappaBounds = KappaBounds::of(&SHIPPED_WEIGHTS);
+/// let net = CredenceNet::new(&SHIPPED_WEIGHTS).with_bounds(&BOUNDS);
+/// let tau = Kappa::from_num(0.5);
+/// // Far off axis the net cannot reach τ, and says so without running.
+/// let far_off = EchoGeometry { range_mm: 2000, theta_mdeg: 40_000, delta_mdeg: 0 };
+/// assert!(!net.may_reach(&far_off, tau) && net.kappa(&far_off) < tau);
+/// // On axis it may (and does).
+/// let on_axis = EchoGeometry { range_mm: 2000, theta_mdeg: 0, delta_mdeg: 0 };
+/// assert!(net.may_reach(&on_axis, tau) && net.kappa(&on_axis) >= tau);
+/// ```
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct KappaBounds {
+    /// `ceil(255 · max κ)` over each bin, by range bin then angle bin.
+    upper: [[u8; BOUND_THETA_BINS]; BOUND_R_BINS],
+}
+
+impl KappaBounds {
+    /// The bounds of the net with these weights.
+    pub const fn of(w: &QuantWeights) -> Self {
+        let mut upper = [[0u8; BOUND_THETA_BINS]; BOUND_R_BINS];
+        let mut k = 0;
+        while k < BOUND_R_BINS {
+            let r_lo = R_MIN_MM + ((k as u32) << BOUND_R_SHIFT);
+            let r_hi = min_u32(r_lo + (1 << BOUND_R_SHIFT) - 1, R_MAX_MM);
+            let mut m = 0;
+            while m < BOUND_THETA_BINS {
+                let t_lo = (m as u32) << BOUND_THETA_SHIFT;
+                let t_hi = min_u32(t_lo + (1 << BOUND_THETA_SHIFT) - 1, THETA_MAX_MDEG);
+                let bits = kappa_max_bits(w, (r_lo, r_hi), (t_lo, t_hi)) as u32;
+                // ceil(255 · bits / 2¹⁵): at most 255.
+                upper[k][m] = ((bits * 255 + (1 << 15) - 1) >> 15) as u8;
+                m += 1;
+            }
+            k += 1;
+        }
+        Self { upper }
+    }
+
+    /// The bound for an echo, in 1/255 of κ.
+    #[inline]
+    pub fn upper_255(&self, range_mm: u32, theta_mdeg: i32) -> u8 {
+        let r = range_mm.clamp(R_MIN_MM, R_MAX_MM) - R_MIN_MM;
+        let t = theta_mdeg.unsigned_abs().min(THETA_MAX_MDEG);
+        self.upper
+            .get((r >> BOUND_R_SHIFT) as usize)
+            .and_then(|row| row.get((t >> BOUND_THETA_SHIFT) as usize))
+            .copied()
+            .unwrap_or(u8::MAX)
+    }
+
+    /// Whether κ at this echo can be at least `tau`.
+    #[inline]
+    pub fn may_reach(&self, range_mm: u32, theta_mdeg: i32, tau: Kappa) -> bool {
+        // ub / 255 < τ  ⇔  ub · 2¹⁵ < τ_bits · 255.
+        u32::from(self.upper_255(range_mm, theta_mdeg)) << 15 >= u32::from(tau.to_bits()) * 255
+    }
+}
+
+const fn min_u32(a: u32, b: u32) -> u32 {
+    if a < b {
+        a
+    } else {
+        b
+    }
+}
+
+const fn max_i64(a: i64, b: i64) -> i64 {
+    if a > b {
+        a
+    } else {
+        b
+    }
+}
+
+const fn min_i64(a: i64, b: i64) -> i64 {
+    if a < b {
+        a
+    } else {
+        b
+    }
+}
+
+/// The largest κ (U1F15 bits) the net's integer algorithm gives for any
+/// clamped input in the box `r ∈ [r.0, r.1]`, `|θ| ∈ [t.0, t.1]` (both within
+/// the domain).
+const fn kappa_max_bits(w: &QuantWeights, r: (u32, u32), t: (u32, u32)) -> u16 {
+    // Step 1 is increasing in each input.
+    let x0 = (input_r(r.0) as i64, input_r(r.1) as i64);
+    let x1 = (input_t(t.0) as i64, input_t(t.1) as i64);
+    let mut acc_out: i64 = 0;
+    let mut j = 0;
+    while j < HIDDEN {
+        let (w0, w1) = (w.w_hidden[j][0].to_bits() as i64, w.w_hidden[j][1].to_bits() as i64);
+        let lo = min_i64(w0 * x0.0, w0 * x0.1) + min_i64(w1 * x1.0, w1 * x1.1);
+        let hi = max_i64(w0 * x0.0, w0 * x0.1) + max_i64(w1 * x1.0, w1 * x1.1);
+        let b = w.b_hidden[j].to_bits() as i64;
+        // The rounding shift is non-decreasing, and so is σ.
+        let h_lo = sigmoid_q16(b + ((lo + (1 << (FRAC - 1))) >> FRAC)) as i64;
+        let h_hi = sigmoid_q16(b + ((hi + (1 << (FRAC - 1))) >> FRAC)) as i64;
+        let v = w.w_out[j].to_bits() as i64;
+        acc_out += max_i64(v * h_lo, v * h_hi);
+        j += 1;
+    }
+    let z = w.b_out.to_bits() as i64 + ((acc_out + (1 << (FRAC - 1))) >> FRAC);
+    ((sigmoid_q16(z) as u32 + 1) >> 1) as u16
+}
+
+/// Step 1 for a range already clamped to the domain.
+const fn input_r(r: u32) -> i32 {
+    (r as i32 - R_CENTRE_MM) << (FRAC - R_SCALE_LOG2)
+}
+
+/// Step 1 for an angle already clamped to the domain.
+const fn input_t(t: u32) -> i32 {
+    (t as i32 - THETA_CENTRE_MDEG) << (FRAC - THETA_SCALE_LOG2)
 }
 
 #[cfg(test)]

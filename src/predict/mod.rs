@@ -176,6 +176,9 @@ pub struct PredictStats {
     pub edges: u32,
     /// κ evaluations.
     pub kappa_evals: u32,
+    /// Candidates passed over without running the credence model, because
+    /// its κ could not reach τ there ([`Credence::may_reach`]).
+    pub kappa_bounded: u32,
     /// Occlusion tests (segment queries through the grid).
     pub occlusion_tests: u32,
 }
@@ -187,6 +190,7 @@ impl core::ops::AddAssign for PredictStats {
         self.beacons += o.beacons;
         self.edges += o.edges;
         self.kappa_evals += o.kappa_evals;
+        self.kappa_bounded += o.kappa_bounded;
         self.occlusion_tests += o.occlusion_tests;
     }
 }
@@ -512,8 +516,15 @@ fn search_edge<M: MapSource + ?Sized, K: Credence + ?Sized>(
                     theta_mdeg: libm::roundf(theta.to_degrees() * 1000.0) as i32,
                     delta_mdeg,
                 };
-                stats.kappa_evals += 1;
-                let kappa = credence.kappa(&echo);
+                // Where κ provably cannot reach τ the net need not run: the
+                // candidate is passed over either way.
+                let kappa = if credence.may_reach(&echo, params.tau_kappa) {
+                    stats.kappa_evals += 1;
+                    credence.kappa(&echo)
+                } else {
+                    stats.kappa_bounded += 1;
+                    Kappa::ZERO
+                };
                 if kappa >= params.tau_kappa && !occluded(map, ctx, v, range, stats) {
                     let case = if (s - foot).abs() * len < 0.5 {
                         Case::I

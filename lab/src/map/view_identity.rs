@@ -7,7 +7,7 @@
 
 use std::path::Path;
 
-use echoloc::credence::net::CredenceNet;
+use echoloc::credence::net::{CredenceNet, SHIPPED_WEIGHTS};
 use echoloc::geometry::{Point, Segment};
 use echoloc::map::{Layer, MapSource, MapView, StandardMap};
 use echoloc::predict::{
@@ -33,6 +33,8 @@ fn check(source: &str, poses: usize, seed: u64) {
     assert_eq!(MapSource::piece_count(&*map), view.piece_count());
     let b = view.bounds().expect("a map with pieces");
     let net = CredenceNet::shipped();
+    let unbounded = CredenceNet::new(&SHIPPED_WEIGHTS);
+    let mut skipped = 0;
     let window = WindowParams { tb_mm: view.buffer_mm(), ..WindowParams::MARGE };
     let mut rng = Rng::new(seed);
     let mut predicted = 0;
@@ -52,6 +54,13 @@ fn check(source: &str, poses: usize, seed: u64) {
             let sv = predict_ring(&view, &pose, &PIONEER16, &params, &net, &mut v);
             assert_eq!(sa, sv, "{source}: stats at {pose:?} ({strategy:?})");
             assert_eq!(a, v, "{source}: predictions at {pose:?} ({strategy:?})");
+            // The κ bounds skip only what the net would have passed over.
+            let mut u = [None; 16];
+            let su = predict_ring(&view, &pose, &PIONEER16, &params, &unbounded, &mut u);
+            assert_eq!(u, v, "{source}: the κ bounds changed a prediction at {pose:?} ({strategy:?})");
+            let (su, sv) = (su.expect("predicts"), sv.expect("predicts"));
+            assert_eq!((su.kappa_evals, su.kappa_bounded), (sv.kappa_evals + sv.kappa_bounded, 0));
+            skipped += sv.kappa_bounded;
             predicted += a.iter().flatten().count();
         }
         // The predictor's shortcuts (nearest-first visit, early stop, occlusion
@@ -79,6 +88,7 @@ fn check(source: &str, poses: usize, seed: u64) {
     }
     // The comparison means something only if the poses see things.
     assert!(predicted > poses, "{source}: only {predicted} predictions over {poses} poses");
+    assert!(skipped as usize > poses, "{source}: the κ bounds skipped only {skipped} evaluations");
 }
 
 #[test]
