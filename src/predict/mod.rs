@@ -172,7 +172,8 @@ pub struct PredictStats {
     /// Beacons searched: for the exact strategy, every candidate searched
     /// before the early stop (its edge clipping is the exact test).
     pub beacons: u32,
-    /// Front edges that meet the window.
+    /// Front edges searched: those that meet the window, less those seen
+    /// beyond δ_max at every point (passed over before their clipping).
     pub edges: u32,
     /// κ evaluations.
     pub kappa_evals: u32,
@@ -252,6 +253,9 @@ pub fn predict<M: MapSource + ?Sized, K: Credence + ?Sized>(
     #[cfg(echoloc_plant_panic)]
     let _ = keys[core::hint::black_box(0)];
     let mut best: Option<(f32, Prediction)> = None;
+    // 0.01° above δ_max: the walk's δ (f32, rounded to millidegrees) is
+    // within 0.001° of the true angle, this test's within 10⁻⁴°.
+    let oblique_limit = crate::f32math::sin_cos((params.window.delta_max_deg + 0.01).to_radians());
     for &key in keys.iter() {
         let lb2 = (key >> 16) as f32 * scale;
         if best.is_some_and(|(r, _)| lb2 > (r + 1.0) * (r + 1.0)) {
@@ -268,7 +272,7 @@ pub fn predict<M: MapSource + ?Sized, K: Credence + ?Sized>(
         // The exact strategy's candidates are every piece in the window's box
         // within R_max: they serve as the occlusion test's candidates too.
         let occluders = (params.strategy == Strategy::Exact).then_some((&keys[..], area, scale));
-        search_piece(map, window, &piece, params, credence, occluders, &mut best, &mut stats);
+        search_piece(map, window, &piece, params, credence, occluders, Some(oblique_limit), &mut best, &mut stats);
     }
     Ok((best.map(|(_, p)| p), stats))
 }
@@ -332,14 +336,16 @@ pub fn predict_unpruned<M: MapSource + ?Sized, K: Credence + ?Sized>(
     let mut best: Option<(f32, Prediction)> = None;
     for &id in &beacons {
         let Some(piece) = map.piece(id) else { continue };
-        search_piece(map, window, &piece, params, credence, None, &mut best, &mut stats);
+        search_piece(map, window, &piece, params, credence, None, None, &mut best, &mut stats);
     }
     Ok((best.map(|(_, p)| p), stats))
 }
 
 /// Searches every front edge of one beacon that meets the window.
 /// `occluders`: the window's candidate keys, sorted, the box they were
-/// found in and their distance scale (see [`occluded`]).
+/// found in and their distance scale (see [`occluded`]). `oblique_limit`:
+/// `(sin, cos)` of an angle above δ_max, to pass over edges seen beyond it
+/// everywhere (see [`seen_beyond`]).
 #[allow(clippy::too_many_arguments)]
 fn search_piece<M: MapSource + ?Sized, K: Credence + ?Sized>(
     map: &M,
@@ -348,6 +354,7 @@ fn search_piece<M: MapSource + ?Sized, K: Credence + ?Sized>(
     params: &PredictParams,
     credence: &K,
     occluders: Option<(&[u32], Rect, f32)>,
+    oblique_limit: Option<(f32, f32)>,
     best: &mut Option<(f32, Prediction)>,
     stats: &mut PredictStats,
 ) {
@@ -378,11 +385,43 @@ fn search_piece<M: MapSource + ?Sized, K: Credence + ?Sized>(
                 continue;
             }
         }
+        if oblique_limit.is_some_and(|lim| seen_beyond(o, a, b, lim)) {
+            continue; // every point of it fails the δ test: no exact clipping
+        }
         let Some((lo, hi)) = sector.edge_window(a, b) else { continue };
         stats.edges += 1;
         let ctx = EdgeCtx { o, a, b, axis, piece: piece.id, obstacle: piece.obstacle, edge: edge as u8, occluders };
         search_edge(map, &ctx, lo, hi, sector.r_min_mm, sector.r_max_mm, params, credence, best, stats);
     }
+}
+
+/// Whether every point of edge `a → b` is seen from `o` at an incidence δ
+/// beyond the angle whose `(sin, cos)` is `lim` (below 90°). δ is least at
+/// the point of the edge nearest the foot of the perpendicular from `o`
+/// (Proposition 2: it grows with the distance from the foot), so with the
+/// foot inside the edge nothing is passed over, and otherwise only the end
+/// nearer the foot is tested: `tan δ = |e·v| / |e×v|` there, `v` that end
+/// from `o`. In `f32` from the exact differences: each product is within a
+/// few ulp of `|e|·|v|`, so the angle is within 10⁻⁶ rad (the caller's
+/// margin is 0.01°). An oblique edge costs this instead of its exact
+/// clipping and the first steps of its walk.
+#[inline]
+fn seen_beyond(o: Point, a: Point, b: Point, lim: (f32, f32)) -> bool {
+    let e = (diff_f32(b.x, a.x), diff_f32(b.y, a.y));
+    let va = (diff_f32(a.x, o.x), diff_f32(a.y, o.y));
+    let along_a = e.0 * va.0 + e.1 * va.1;
+    let v = if along_a >= 0.0 {
+        va // the foot lies before a
+    } else {
+        let vb = (diff_f32(b.x, o.x), diff_f32(b.y, o.y));
+        if e.0 * vb.0 + e.1 * vb.1 > 0.0 {
+            return false; // the foot lies on the edge: δ = 0 there
+        }
+        vb
+    };
+    let along = (e.0 * v.0 + e.1 * v.1).abs();
+    let across = (e.0 * v.1 - e.1 * v.0).abs();
+    along * lim.1 > across * lim.0
 }
 
 struct EdgeCtx<'k> {
@@ -502,7 +541,7 @@ fn search_edge<M: MapSource + ?Sized, K: Credence + ?Sized>(
                 if best.is_some_and(|(r, p)| range > r || (range == r && ctx.piece >= p.piece)) {
                     break;
                 }
-                let delta = libm::atan2f((e.0 * v.0 + e.1 * v.1).abs(), (e.0 * v.1 - e.1 * v.0).abs());
+                let delta = crate::f32math::atan2((e.0 * v.0 + e.1 * v.1).abs(), (e.0 * v.1 - e.1 * v.0).abs());
                 let delta_mdeg = libm::roundf(delta.to_degrees() * 1000.0) as i32;
                 // Test 2: δ grows with distance from the foot (Proposition 2),
                 // so past δ_max nothing farther along this way can echo. (Before
@@ -510,7 +549,8 @@ fn search_edge<M: MapSource + ?Sized, K: Credence + ?Sized>(
                 if delta_mdeg > delta_max_mdeg {
                     break;
                 }
-                let theta = libm::atan2f(ctx.axis.0 * v.1 - ctx.axis.1 * v.0, ctx.axis.0 * v.0 + ctx.axis.1 * v.1);
+                let theta =
+                    crate::f32math::atan2(ctx.axis.0 * v.1 - ctx.axis.1 * v.0, ctx.axis.0 * v.0 + ctx.axis.1 * v.1);
                 let echo = EchoGeometry {
                     range_mm: libm::roundf(range) as u32,
                     theta_mdeg: libm::roundf(theta.to_degrees() * 1000.0) as i32,
@@ -645,7 +685,52 @@ pub fn nearest_in_window<M: MapSource + ?Sized>(map: &M, window: &Window) -> Res
 
 #[cfg(test)]
 mod tests {
-    use super::sort_keys;
+    use super::{seen_beyond, sort_keys};
+    use crate::geometry::Point;
+
+    /// Against a brute force in `f64`: the least δ over 2 001 points of the
+    /// edge (and its foot, when inside). An edge passed over must be seen
+    /// beyond δ_max + 0.009° everywhere; one kept must come within 0.011°
+    /// of the limit somewhere (the test is not much looser than it says).
+    #[test]
+    fn oblique_edges_are_passed_over_exactly_when_seen_beyond_the_limit() {
+        let mut x = 0x2545_f491_4f6c_dd1du64;
+        let mut next = |span: i64| {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            ((x >> 11) as i64 % (2 * span + 1) - span) as i32
+        };
+        let delta_max = 15.0f32;
+        let lim = crate::f32math::sin_cos((delta_max + 0.01).to_radians());
+        let (mut passed, mut kept) = (0, 0);
+        for i in 0..20_000 {
+            let span = [300, 5_000, 60_000][i % 3];
+            let (o, a) = (Point::new(next(span), next(span)), Point::new(next(span), next(span)));
+            let b = Point::new(a.x + next(span / 2), a.y + next(span / 2));
+            if a == b {
+                continue;
+            }
+            let e = ((b.x - a.x) as f64, (b.y - a.y) as f64);
+            let delta_at = |s: f64| {
+                let v = ((a.x - o.x) as f64 + s * e.0, (a.y - o.y) as f64 + s * e.1);
+                (e.0 * v.0 + e.1 * v.1).abs().atan2((e.0 * v.1 - e.1 * v.0).abs()).to_degrees()
+            };
+            let foot = -(((a.x - o.x) as f64) * e.0 + ((a.y - o.y) as f64) * e.1) / (e.0 * e.0 + e.1 * e.1);
+            let mut least = (0..=2_000).map(|k| delta_at(k as f64 / 2_000.0)).fold(f64::INFINITY, f64::min);
+            if (0.0..=1.0).contains(&foot) {
+                least = least.min(delta_at(foot));
+            }
+            if seen_beyond(o, a, b, lim) {
+                passed += 1;
+                assert!(least > f64::from(delta_max) + 0.009, "{o:?} {a:?} {b:?}: least δ {least}° passed over");
+            } else {
+                kept += 1;
+                assert!(least < f64::from(delta_max) + 0.011, "{o:?} {a:?} {b:?}: least δ {least}° kept");
+            }
+        }
+        assert!(passed > 5_000 && kept > 2_000, "passed over {passed}, kept {kept}");
+    }
 
     /// Against `sort_unstable` on random lengths on both sides of the
     /// insertion/heap switch, with many repeated keys.
