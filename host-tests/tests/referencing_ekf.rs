@@ -289,6 +289,9 @@ impl RefEkf {
         if nis > self.cfg.gate as f64 {
             return (false, nu, nis);
         }
+        // Huber: the variance that makes the NIS `robust_nis` (the reading's
+        // R grows by the difference; P = (I − KH)P holds for that R).
+        let s = if nis > self.cfg.robust_nis as f64 { nu * nu / self.cfg.robust_nis as f64 } else { s };
         let k: Vec<f64> = ph.iter().map(|v| v / s).collect();
         let mut ikh = [[0.0; 3]; 3];
         for i in 0..3 {
@@ -374,6 +377,58 @@ fn corridor_run_agrees_with_textbook_f64_ekf_and_converges() {
     assert!(err[0].abs() < 1e-4 && err[1].abs() < 1e-4 && err[2].abs() < 1e-4, "{x:?} vs truth {truth:?}");
     let p = ekf.covariance();
     assert!(p[0][0] < 1e-3 && p[1][1] < 1e-3 && p[2][2] < 1e-3, "{p:?}");
+}
+
+/// A reading inside the gate but past Huber's threshold: the filter agrees
+/// with the textbook f64 EKF given the inflated variance, and it moves the
+/// state by `robust_nis / NIS` of what the plain update moves it, and
+/// shrinks the covariance less. Below the threshold the two configurations
+/// agree bit for bit.
+#[test]
+fn huber_weights_a_doubtful_reading_down_as_the_textbook_says() {
+    let ring = pioneer_m();
+    let walls = corridor();
+    let (start, sigma) = ([0.2f32, -0.1, 0.02], [0.1f32, 0.1, 0.05]);
+    let plain_cfg = EkfConfig { robust_nis: f32::INFINITY, ..CFG };
+    assert!(CFG.robust_nis < CFG.gate, "the default weights down some readings the gate passes");
+    let mut moved = 0;
+    for (n, &(i, w)) in SEES.iter().enumerate() {
+        for c in [1.0f64, 1.4, 1.7, 2.0, 2.4, -1.9, -2.3] {
+            let t6 = T64::of(&walls[w]);
+            let (mut huber, mut plain) =
+                (Ekf::new(start, sigma, CFG).unwrap(), Ekf::new(start, sigma, plain_cfg).unwrap());
+            let mut r = RefEkf::new(x64(&start), sigma.map(|v| v as f64), CFG);
+            let (h, sv) = innovation_var(&huber, ring[i], &walls[w], 0.8);
+            let z = (h + c * sv.sqrt()) as f32;
+            let got = huber.update(z, 0.8, mount32(ring[i]), &walls[w]);
+            plain.update(z, 0.8, mount32(ring[i]), &walls[w]);
+            let (ok, _, nis) = r.update(z as f64, 0.8, ring[i], &t6);
+            assert!(ok && matches!(got, Update::Accepted { .. }), "reading {n} at {c}σ: {got:?}");
+            let (x, xp, p) = (huber.state(), plain.state(), to_f64(&huber.covariance()));
+            for a in 0..3 {
+                assert!((x[a] as f64 - r.x[a]).abs() <= 2e-6, "{c}σ: state {x:?} vs {:?}", r.x);
+                for b in 0..3 {
+                    let sc = (r.p[a][a] * r.p[b][b]).sqrt();
+                    assert!((p[a][b] - r.p[a][b]).abs() / sc <= 1e-4, "{c}σ: P {p:?} vs {:?}", r.p);
+                }
+            }
+            if nis <= CFG.robust_nis as f64 {
+                assert_eq!(x.map(f32::to_bits), xp.map(f32::to_bits), "{c}σ: below the threshold");
+                continue;
+            }
+            moved += 1;
+            // The correction K·ν scales with 1/S: robust_nis / NIS of the plain one.
+            let ratio = CFG.robust_nis as f64 / nis;
+            for a in 0..3 {
+                let (dh, dp) = (x[a] as f64 - start[a] as f64, xp[a] as f64 - start[a] as f64);
+                assert!((dh - ratio * dp).abs() <= 1e-5 + 1e-3 * dp.abs(), "{c}σ: moved {dh} against {ratio} × {dp}");
+            }
+            let (tr_h, tr_p) =
+                ((0..3).map(|a| p[a][a]).sum::<f64>(), (0..3).map(|a| plain.covariance()[a][a] as f64).sum::<f64>());
+            assert!(tr_h > tr_p, "{c}σ: the covariance shrank as much as the plain update's");
+        }
+    }
+    assert!(moved >= 12, "only {moved} readings past the threshold");
 }
 
 // ---------------------------------------------------------------------------

@@ -42,6 +42,14 @@ pub struct EkfConfig {
     pub point_variance_scale: f32,
     /// χ² gate for one degree of freedom (6.63: 99 %).
     pub gate: f32,
+    /// Huber's threshold on the normalised innovation ν²/S (2.5: 1.6 σ;
+    /// `INFINITY` turns it off). A reading the gate passes beyond it is
+    /// weighted down: its variance grows until ν²/S is this, so it moves the
+    /// state by `robust_nis / (ν²/S)` of a full update and shrinks the
+    /// covariance less. One clutter reading just inside the gate then cannot
+    /// pull the pose far and collapse the covariance around the wrong place
+    /// (docs/self-referencing.md measures it).
+    pub robust_nis: f32,
     /// The smallest variance kept on the diagonal, so the covariance stays
     /// positive definite in `f32`.
     pub min_var: [f32; 3],
@@ -101,6 +109,7 @@ impl EkfConfig {
         kappa_floor: 0.1,
         point_variance_scale: 4.0,
         gate: 6.63,
+        robust_nis: 2.5,
         min_var: [1e-8, 1e-8, 1e-9],
         max_var: [100.0, 100.0, 10.0],
         lost_min_tested: 6,
@@ -326,6 +335,14 @@ impl Ekf {
             return Update::Gated { innovation: nu, nis };
         }
         self.cycle.accepted = self.cycle.accepted.saturating_add(1);
+        // Huber: past `robust_nis`, the reading's variance is inflated until
+        // its normalised innovation is `robust_nis`.
+        let (s, s2) = if nis > self.cfg.robust_nis {
+            let wide = nu * nu / self.cfg.robust_nis;
+            (wide, s2 + (wide - s))
+        } else {
+            (s, s2)
+        };
         let k = [ph[0] / s, ph[1] / s, ph[2] / s];
         // Joseph form: P ← (I − K H) P (I − K H)ᵀ + K R Kᵀ.
         let mut ikh = [[0.0f32; 3]; 3];

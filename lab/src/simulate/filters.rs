@@ -165,6 +165,9 @@ pub struct Start {
     /// Whether a lost EKF may recover (`echoloc::referencing::recovery`);
     /// off only to measure what recovery does.
     pub recovery: bool,
+    /// Whether doubtful readings are weighted down (`EkfConfig::robust_nis`);
+    /// off only to measure what that does.
+    pub robust: bool,
 }
 
 /// A scenario's records as steps: ranges from the echo times by the
@@ -225,6 +228,9 @@ pub fn run(
     let mut cfg = EkfConfig::DEFAULT;
     if !start.recovery {
         cfg.recovery = RecoveryConfig::OFF;
+    }
+    if !start.robust {
+        cfg.robust_nis = f32::INFINITY;
     }
     let ekf = Ekf::new(start.pose, start.sigma, cfg).map_err(|e| format!("start: {e:?}"))?;
     let mut ekf = Referencer::new(ekf, verdicts);

@@ -60,6 +60,10 @@ pub struct SimulateArgs {
     /// The EKF without recovery while lost, to measure what it does.
     #[arg(long = "no-recovery")]
     no_recovery: bool,
+    /// The EKF without Huber's down-weighting of doubtful readings
+    /// (`EkfConfig::robust_nis`), to measure what it does.
+    #[arg(long = "no-robust")]
+    no_robust: bool,
 }
 
 /// κ at and above which the predictor counts as confident when its
@@ -99,7 +103,7 @@ pub fn simulate_cmd(a: &SimulateArgs) -> Result<String, LabError> {
     let records = to_records(&run)?;
     let header = header(&run, map_crc, &records);
     let steps = filters::steps_of_records(&header, &records).map_err(LabError)?;
-    let start = filters::Start { recovery: !a.no_recovery, ..start_of(&header) };
+    let start = filters::Start { recovery: !a.no_recovery, robust: !a.no_robust, ..start_of(&header) };
     let trace = filters::run(&map, &mounts, &start, &steps, &mut |f| bar.set(0.5 + 0.5 * f))
         .map_err(|e| LabError(format!("{}: {e}", a.map.display())))?;
     bar.finish();
@@ -131,7 +135,7 @@ pub fn simulate_cmd(a: &SimulateArgs) -> Result<String, LabError> {
 
 /// Where a scenario's filters start.
 pub fn start_of(h: &Header) -> filters::Start {
-    filters::Start { pose: h.start, sigma: h.start_sigma, recovery: true }
+    filters::Start { pose: h.start, sigma: h.start_sigma, recovery: true, robust: true }
 }
 
 /// The run as a plain log: each step's time, transducer and range (what the
