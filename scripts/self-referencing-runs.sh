@@ -5,6 +5,7 @@
 #   bash scripts/self-referencing-runs.sh tb3_sandbox 0.5 20
 #   bash scripts/self-referencing-runs.sh depot 0.8 50
 #   bash scripts/self-referencing-runs.sh depot 0.5 40 --no-recovery   # further arguments go to simulate
+#   bash scripts/self-referencing-runs.sh depot 0.5 40 --no-robust
 # Each run prints: seed, EKF position RMSE (m), heading RMSE (deg), max
 # position error (m), dead reckoning's max error (m), lost raised, cleared,
 # cycles lost, cycles, achieved inconsistency, confirmed fraction,

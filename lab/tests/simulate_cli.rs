@@ -121,6 +121,12 @@ fn json_report_has_every_figure_in_range() {
     assert!(u(&v, "lost.recoveries") <= u(&v, "lost.cycles_lost"));
     let off = simulate(&["--map", s(&map), "--seed", "3", "--distance-m", "20", "--no-recovery"]);
     assert_eq!(u(&off, "lost.recoveries"), 0);
+    // Without Huber's down-weighting: the same world and the same other
+    // methods, another EKF (its covariance is the filter's own state).
+    let rough = simulate(&["--map", s(&map), "--seed", "3", "--distance-m", "20", "--no-robust"]);
+    assert_eq!(rough["dead_reckoning"], v["dead_reckoning"]);
+    assert_eq!(rough["threshold"], v["threshold"]);
+    assert_ne!(rough["ekf"]["covariance"], v["ekf"]["covariance"]);
     assert_eq!(v["lost"]["raised"], v["ekf"]["lost_raised"]);
     assert_eq!(v["lost"]["cleared"], v["ekf"]["lost_cleared"]);
     assert_eq!(v["lost"]["cycles_lost"], v["ekf"]["cycles_lost"]);
