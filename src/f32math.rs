@@ -35,6 +35,8 @@ pub fn sin_cos(a: f32) -> (f32, f32) {
 /// for finite arguments; `0` for `(0, 0)` (either sign), NaN if either is
 /// NaN. The octant's ratio `t ∈ [0, 1]` goes through the minimax polynomial
 /// of Abramowitz & Stegun 4.4.49 (error below 2·10⁻⁸ on `[0, 1]`).
+/// (`micromath`'s `atan2` states 0.002 rad, a hundred times the millidegree
+/// the predictor reports θ and δ in.)
 pub fn atan2(y: f32, x: f32) -> f32 {
     // As printed in A&S (rounded to f32 by the compiler).
     #[allow(clippy::excessive_precision)]
