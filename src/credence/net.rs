@@ -222,7 +222,13 @@ fn mul(a: i32, b: i32) -> i64 {
 /// The two inputs as Q16.16 bits, exact (step 1 of the module docs); both
 /// lie within ±2¹⁷.
 fn inputs(range_mm: u32, theta_mdeg: i32) -> (i32, i32) {
-    (input_r(range_mm.clamp(R_MIN_MM, R_MAX_MM)), input_t(theta_mdeg.unsigned_abs().min(THETA_MAX_MDEG)))
+    let (r, t) = clamped(range_mm, theta_mdeg);
+    (input_r(r), input_t(t))
+}
+
+/// R and |θ| clamped to the domain, the nearest domain edge outside it.
+fn clamped(range_mm: u32, theta_mdeg: i32) -> (u32, u32) {
+    (range_mm.clamp(R_MIN_MM, R_MAX_MM), theta_mdeg.unsigned_abs().min(THETA_MAX_MDEG))
 }
 
 /// σ(z) for a Q16.16 pre-activation, as Q0.16 in `0 ..= 2¹⁶` (step 3). The
@@ -313,10 +319,9 @@ impl KappaBounds {
     /// The bound for an echo, in 1/255 of κ.
     #[inline]
     pub fn upper_255(&self, range_mm: u32, theta_mdeg: i32) -> u8 {
-        let r = range_mm.clamp(R_MIN_MM, R_MAX_MM) - R_MIN_MM;
-        let t = theta_mdeg.unsigned_abs().min(THETA_MAX_MDEG);
+        let (r, t) = clamped(range_mm, theta_mdeg);
         self.upper
-            .get((r >> BOUND_R_SHIFT) as usize)
+            .get(((r - R_MIN_MM) >> BOUND_R_SHIFT) as usize)
             .and_then(|row| row.get((t >> BOUND_THETA_SHIFT) as usize))
             .copied()
             .unwrap_or(u8::MAX)
