@@ -127,6 +127,15 @@ fn json_report_has_every_figure_in_range() {
     assert_eq!(rough["dead_reckoning"], v["dead_reckoning"]);
     assert_eq!(rough["threshold"], v["threshold"]);
     assert_ne!(rough["ekf"]["covariance"], v["ekf"]["covariance"]);
+    // The clutter oracle: the same world, the readings inconsistent with the
+    // map silenced for the filters; dead reckoning is the same, and the
+    // verdicts see far fewer unmapped objects (those left are echoes of
+    // mapped surfaces the predictor does not predict: the agreement misses).
+    let oracle = simulate(&["--map", s(&map), "--seed", "3", "--distance-m", "20", "--only-consistent"]);
+    assert_eq!(oracle["dead_reckoning"], v["dead_reckoning"]);
+    assert_eq!(oracle["inconsistent_fraction"], v["inconsistent_fraction"]);
+    let unknown = |v: &serde_json::Value| u(v, "verdicts.unknown_obstacle") + u(v, "verdicts.unpredicted");
+    assert!(unknown(&v) > 0 && unknown(&oracle) * 2 < unknown(&v), "{} then {}", unknown(&v), unknown(&oracle));
     assert_eq!(v["lost"]["raised"], v["ekf"]["lost_raised"]);
     assert_eq!(v["lost"]["cleared"], v["ekf"]["lost_cleared"]);
     assert_eq!(v["lost"]["cycles_lost"], v["ekf"]["cycles_lost"]);

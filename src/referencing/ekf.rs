@@ -16,6 +16,7 @@
 //! assert!(ekf.state()[0] < 1.0); // the reading says the robot is short of 1 m
 //! ```
 
+use super::calibration::{CalibrationConfig, OdometryCalibration, Standing};
 use super::model::{compose, range_model, wrap, Motion, MountM, Target};
 use super::recovery::{Found, Recent, RecoveryConfig};
 use crate::f32math::sqrt;
@@ -89,6 +90,10 @@ pub struct EkfConfig {
     /// looked for and taken ([`super::recovery`]; `RecoveryConfig::OFF`:
     /// never).
     pub recovery: RecoveryConfig,
+    /// The odometry's systematic heading errors learned from the filter's
+    /// corrections and taken out of each step ([`super::calibration`];
+    /// `CalibrationConfig::OFF`: never).
+    pub calibration: CalibrationConfig,
 }
 
 impl EkfConfig {
@@ -122,6 +127,7 @@ impl EkfConfig {
         lost_rate_margin: 0.25,
         lost_inflation: 1.0,
         recovery: RecoveryConfig::DEFAULT,
+        calibration: CalibrationConfig::DEFAULT,
     };
 }
 
@@ -197,6 +203,7 @@ pub struct Ekf {
     recent: Recent,
     recoveries: u32,
     last_recovery: Option<Found>,
+    calibration: OdometryCalibration,
 }
 
 type M3 = [[f32; 3]; 3];
@@ -249,6 +256,7 @@ impl Ekf {
             recent: Recent::new(),
             recoveries: 0,
             last_recovery: None,
+            calibration: OdometryCalibration::new(cfg.calibration),
         })
     }
 
@@ -273,6 +281,7 @@ impl Ekf {
         if !u.is_finite() {
             return Err(EkfError::NotFinite);
         }
+        let u = &self.calibration.correct(u, self.x[2]);
         let (next, f, g) = compose(&self.x, u);
         if !in_range(&next) {
             return Err(EkfError::OutOfRange);
@@ -427,7 +436,18 @@ impl Ekf {
             }
             self.condition();
         }
+        let standing = match (self.lost, self.bad_run) {
+            (true, _) => Standing::Lost,
+            (false, 0) => Standing::Sure,
+            (false, _) => Standing::Doubtful,
+        };
+        self.calibration.end_cycle(self.x[2], sqrt(self.p[2][2]), standing);
         c
+    }
+
+    /// The odometry calibration ([`super::calibration`]).
+    pub fn calibration(&self) -> &OdometryCalibration {
+        &self.calibration
     }
 
     /// Looks for the correction the last readings agree on and takes it:

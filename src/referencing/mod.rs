@@ -7,6 +7,7 @@
 //! | [`verdict`] | a reading against its prediction: confirmed, unknown obstacle, removed or missed, unpredicted echo, nothing as predicted |
 //! | [`model`] | plane and point range models and the odometry motion model, with analytic Jacobians |
 //! | [`ekf`] | the EKF over (x, y, φ): χ² gate, κ-weighted variance, Joseph form, lost state |
+//! | [`calibration`] | the odometry's systematic heading errors (turn scale, drift per metre) learned from the filter's corrections and taken out of each step |
 //! | [`recovery`] | a lost filter's way back: the last readings linearised, and the correction most of them agree on |
 //! | [`threshold`] | the paper's threshold method |
 //! | [`f32math`] | (re-exported from the crate root, where the window uses it too) sin, cos and √ in single precision |
@@ -15,6 +16,7 @@
 //! way the firmware runs: predict a transducer at the current estimate in
 //! the gap before it fires, judge its reading, update.
 
+pub mod calibration;
 pub mod ekf;
 pub use crate::f32math;
 pub mod model;

@@ -8,6 +8,7 @@ use echoloc::credence::net::CredenceNet;
 use echoloc::driver::SpeedOfSound;
 use echoloc::map::StandardMap;
 use echoloc::predict::{Mount, PredictParams};
+use echoloc::referencing::calibration::{CalibrationConfig, HeadingBias};
 use echoloc::referencing::{
     observe, pose_mm, Ekf, EkfConfig, Motion, MountM, Reading, RecoveryConfig, Referencer, Threshold, ThresholdConfig,
     Update, Verdict, VerdictConfig, VerdictCounts,
@@ -92,6 +93,8 @@ pub struct Trace {
     pub covariance: [[f32; 3]; 3],
     /// Duration, s.
     pub duration_s: f64,
+    /// The EKF's odometry calibration at the end, if it made one.
+    pub calibration: Option<HeadingBias>,
 }
 
 impl Trace {
@@ -168,6 +171,9 @@ pub struct Start {
     /// Whether doubtful readings are weighted down (`EkfConfig::robust_nis`);
     /// off only to measure what that does.
     pub robust: bool,
+    /// Whether the EKF learns the odometry's systematic heading errors
+    /// (`echoloc::referencing::calibration`); off only to measure what that does.
+    pub calibration: bool,
 }
 
 /// A scenario's records as steps: ranges from the echo times by the
@@ -232,6 +238,9 @@ pub fn run(
     if !start.robust {
         cfg.robust_nis = f32::INFINITY;
     }
+    if !start.calibration {
+        cfg.calibration = CalibrationConfig::OFF;
+    }
     let ekf = Ekf::new(start.pose, start.sigma, cfg).map_err(|e| format!("start: {e:?}"))?;
     let mut ekf = Referencer::new(ekf, verdicts);
     let mut thr = Threshold::new(start.pose, ThresholdConfig::DEFAULT);
@@ -293,6 +302,7 @@ pub fn run(
         t.distance_m = odometry_m;
     }
     t.covariance = ekf.ekf.covariance();
+    t.calibration = ekf.ekf.calibration().estimate();
     t.verdicts = ekf.totals();
     t.lost_count = ekf.ekf.lost_count();
     // Every time it became lost but the last was cleared, and that one too unless it is still lost.

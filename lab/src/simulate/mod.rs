@@ -64,6 +64,15 @@ pub struct SimulateArgs {
     /// (`EkfConfig::robust_nis`), to measure what it does.
     #[arg(long = "no-robust")]
     no_robust: bool,
+    /// The EKF without learning the odometry's systematic heading errors
+    /// (`EkfConfig::calibration`), to measure what it does.
+    #[arg(long = "no-calibration")]
+    no_calibration: bool,
+    /// The filters are given only the readings consistent with the map, the
+    /// others as silence: an oracle of the clutter, to tell the filter's
+    /// failures from what the scene leaves to be seen. Not a method.
+    #[arg(long = "only-consistent")]
+    only_consistent: bool,
 }
 
 /// κ at and above which the predictor counts as confident when its
@@ -102,8 +111,20 @@ pub fn simulate_cmd(a: &SimulateArgs) -> Result<String, LabError> {
         .map_err(|e| LabError(format!("{}: {e}", a.map.display())))?;
     let records = to_records(&run)?;
     let header = header(&run, map_crc, &records);
-    let steps = filters::steps_of_records(&header, &records).map_err(LabError)?;
-    let start = filters::Start { recovery: !a.no_recovery, robust: !a.no_robust, ..start_of(&header) };
+    let mut steps = filters::steps_of_records(&header, &records).map_err(LabError)?;
+    if a.only_consistent {
+        for (step, r) in steps.iter_mut().zip(&run.readings) {
+            if !r.consistent {
+                step.reading = echoloc::referencing::Reading::NoEcho;
+            }
+        }
+    }
+    let start = filters::Start {
+        recovery: !a.no_recovery,
+        robust: !a.no_robust,
+        calibration: !a.no_calibration,
+        ..start_of(&header)
+    };
     let trace = filters::run(&map, &mounts, &start, &steps, &mut |f| bar.set(0.5 + 0.5 * f))
         .map_err(|e| LabError(format!("{}: {e}", a.map.display())))?;
     bar.finish();
@@ -135,7 +156,7 @@ pub fn simulate_cmd(a: &SimulateArgs) -> Result<String, LabError> {
 
 /// Where a scenario's filters start.
 pub fn start_of(h: &Header) -> filters::Start {
-    filters::Start { pose: h.start, sigma: h.start_sigma, recovery: true, robust: true }
+    filters::Start { pose: h.start, sigma: h.start_sigma, recovery: true, robust: true, calibration: true }
 }
 
 /// The run as a plain log: each step's time, transducer and range (what the
@@ -290,6 +311,7 @@ pub fn report(t: &Trace, run: Option<&SimRun>) -> Value {
                 "cycles_lost": t.cycles_lost,
                 "recoveries": t.recoveries,
                 "covariance": t.covariance.map(|r| r.map(f64::from)),
+                "odometry_calibration": t.calibration.map(|b| json!({"per_rad": b.per_rad, "per_m": b.per_m})),
             })
         ),
         "verdicts": {
@@ -335,6 +357,7 @@ pub fn report(t: &Trace, run: Option<&SimRun>) -> Value {
             "left_scale": run.odometry_errors.left_scale,
             "right_scale": run.odometry_errors.right_scale,
             "wheelbase_scale": run.odometry_errors.wheelbase_scale,
+            "heading_bias": {"per_rad": run.heading_bias.0, "per_m": run.heading_bias.1},
         },
         "detection": {
             "unknown_obstacle": {"precision": ratio(uo_tp, uo_tp + uo_fp), "recall": ratio(uo_tp, uo_tp + uo_fn),

@@ -101,5 +101,6 @@ pub fn simulate_world(
         sound: setup.plan.module.sound(),
         duration_s: setup.traj.duration(),
         odometry_errors: setup.odometry_errors,
+        heading_bias: setup.odometry_errors.heading_bias(setup.cfg.odometry.wheelbase_m),
     })
 }

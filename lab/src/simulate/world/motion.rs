@@ -106,6 +106,20 @@ pub struct OdometryErrors {
 }
 
 impl OdometryErrors {
+    /// The heading corrections these errors call for, as
+    /// `echoloc::referencing::calibration` states them: per radian the
+    /// odometry turned, and per metre it drove forward (rad). From
+    /// [`Odometry::integrate`]: turning in place, the odometry reads the true
+    /// turn × wheelbase_scale × h, with h = (1/left + 1/right)/2; driving
+    /// straight, it reads h metres a metre and turns (1/right − 1/left)/wheelbase
+    /// a metre. (A correction `dφ·(1 + per_rad) + per_m·dx` scales the drift too.)
+    pub fn heading_bias(&self, wheelbase_m: f64) -> (f64, f64) {
+        let h = (1.0 / self.left_scale + 1.0 / self.right_scale) / 2.0;
+        let per_rad = 1.0 / (self.wheelbase_scale * h) - 1.0;
+        let drift = (1.0 / self.right_scale - 1.0 / self.left_scale) / wheelbase_m;
+        (per_rad, -(1.0 + per_rad) * drift / h)
+    }
+
     /// Draws the scales of `model`, each with a random sign.
     pub fn draw(model: &OdometryModel, rng: &mut Rng) -> Self {
         let sign = |rng: &mut Rng| if rng.next_f64() < 0.5 { -1.0 } else { 1.0 };

@@ -133,4 +133,6 @@ pub struct SimRun {
     pub duration_s: f64,
     /// The systematic odometry errors drawn for this run.
     pub odometry_errors: OdometryErrors,
+    /// The heading corrections they call for ([`OdometryErrors::heading_bias`]).
+    pub heading_bias: (f64, f64),
 }
