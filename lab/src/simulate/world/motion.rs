@@ -109,7 +109,7 @@ impl OdometryErrors {
     /// The heading corrections these errors call for, as
     /// `echoloc::referencing::calibration` states them: per radian the
     /// odometry turned, and per metre it drove forward (rad). From
-    /// [`Odometry::integrate`]: turning in place, the odometry reads the true
+    /// `Odometry::integrate`: turning in place, the odometry reads the true
     /// turn × wheelbase_scale × h, with h = (1/left + 1/right)/2; driving
     /// straight, it reads h metres a metre and turns (1/right − 1/left)/wheelbase
     /// a metre. (A correction `dφ·(1 + per_rad) + per_m·dx` scales the drift too.)
