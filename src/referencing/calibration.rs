@@ -43,7 +43,8 @@
 //!     // distance would grow together and could not be told apart).
 //!     let turn = match k % 40 { 0 => 1.5, 20 => -1.0, _ => 0.0 };
 //!     let u = Motion { dx: 0.2, dy: 0.0, dphi: turn * 0.98 + 0.2 * 0.1f32.to_radians() };
-//!     cal.correct(&u, heading);
+//!     let _step = cal.corrected(&u); // what the filter would predict with
+//!     cal.take(&u, heading);
 //!     truth += turn;
 //!     heading = echoloc::referencing::wrap(truth);
 //!     cal.end_cycle(heading, 0.001, Standing::Sure);
@@ -166,21 +167,26 @@ impl OdometryCalibration {
         self.samples
     }
 
-    /// One odometry step `u`, given the filter's heading before it predicts
-    /// with the step: the sums take the raw step, and the step the filter
-    /// should use is returned.
-    pub fn correct(&mut self, u: &Motion, heading: f32) -> Motion {
+    /// The step the filter should predict with for the odometry's step `u`.
+    pub fn corrected(&self, u: &Motion) -> Motion {
+        match self.estimate() {
+            Some(b) => Motion { dphi: u.dphi + b.per_rad * u.dphi + b.per_m * u.dx, ..*u },
+            None => *u,
+        }
+    }
+
+    /// The filter, at `heading`, has taken the odometry's step `u` (as
+    /// [`Self::corrected`] gave it): the sums take the raw step. Called only
+    /// once the filter has accepted the step, so a refused one counts for
+    /// neither.
+    pub fn take(&mut self, u: &Motion, heading: f32) {
         if !self.cfg.enabled {
-            return *u;
+            return;
         }
         self.follow(heading);
         self.sums[0] += u.dphi;
         self.sums[1] += u.dx;
         self.sums[2] -= u.dphi;
-        match self.estimate {
-            Some(b) => Motion { dphi: u.dphi + b.per_rad * u.dphi + b.per_m * u.dx, ..*u },
-            None => *u,
-        }
     }
 
     /// Ends a ring cycle: the filter's heading now, its σ (rad), and how it
@@ -280,7 +286,7 @@ mod tests {
             // The odometry: true turn over (1 + per_rad), and drift the other way.
             let odo = Motion { dx: dx as f32, dy: 0.0, dphi: (turn / (1.0 + per_rad) - per_m * dx) as f32 };
             let heading = wrap((truth + noise(k)) as f32);
-            cal.correct(&odo, heading);
+            cal.take(&odo, heading);
             truth += turn;
             cal.end_cycle(wrap((truth + noise(k)) as f32), 0.005, Standing::Sure);
         }
@@ -315,20 +321,20 @@ mod tests {
         let cal = drive(0.02, 0.005, |_| 0.0, 99);
         assert_eq!(cal.estimate(), None);
         let u = Motion { dx: 0.3, dy: 0.01, dphi: 0.2 };
-        let mut c = cal;
-        assert_eq!(c.correct(&u, 0.0), u);
+        assert_eq!(cal.corrected(&u), u);
         let mut off = OdometryCalibration::new(CalibrationConfig::OFF);
-        assert_eq!(off.correct(&u, 0.0), u);
+        off.take(&u, 0.0);
+        assert_eq!(off.corrected(&u), u);
         off.end_cycle(1.0, 0.0, Standing::Sure);
         assert_eq!(off.samples(), 0);
     }
 
     #[test]
     fn corrects_each_step_by_the_estimate() {
-        let mut cal = drive(0.02, 0.005, |_| 0.0, 1000);
+        let cal = drive(0.02, 0.005, |_| 0.0, 1000);
         let b = cal.estimate().unwrap();
         let u = Motion { dx: 0.3, dy: 0.01, dphi: 0.2 };
-        let v = cal.correct(&u, 0.0);
+        let v = cal.corrected(&u);
         assert_eq!((v.dx, v.dy), (u.dx, u.dy));
         assert!((v.dphi - (0.2 * (1.0 + b.per_rad) + 0.3 * b.per_m)).abs() < 1e-7);
     }
@@ -352,7 +358,7 @@ mod tests {
         // Only driving: no turn to fit, no estimate.
         let mut cal = OdometryCalibration::new(CalibrationConfig::DEFAULT);
         for _ in 0..500 {
-            cal.correct(&Motion { dx: 0.2, dy: 0.0, dphi: 0.001 }, 0.0);
+            cal.take(&Motion { dx: 0.2, dy: 0.0, dphi: 0.001 }, 0.0);
             cal.end_cycle(0.0, 0.001, Standing::Sure);
         }
         assert_eq!(cal.estimate(), None);

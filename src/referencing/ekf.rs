@@ -281,11 +281,13 @@ impl Ekf {
         if !u.is_finite() {
             return Err(EkfError::NotFinite);
         }
-        let u = &self.calibration.correct(u, self.x[2]);
+        let raw = u;
+        let u = &self.calibration.corrected(raw);
         let (next, f, g) = compose(&self.x, u);
         if !in_range(&next) {
             return Err(EkfError::OutOfRange);
         }
+        self.calibration.take(raw, self.x[2]);
         let d = sqrt(u.dx * u.dx + u.dy * u.dy);
         let turn = libm::fabsf(u.dphi);
         let c = &self.cfg;
