@@ -145,6 +145,16 @@ fn json_report_has_every_figure_in_range() {
     let (conf, within) = (u(&v, "agreement.confident"), u(&v, "agreement.within_tolerance"));
     assert!(conf > 0 && within + u(&v, "agreement.silent") <= conf);
     assert!(u(&v, "agreement.nothing_read") <= u(&v, "agreement.nothing_predicted"));
+    // The nearer echoes by range add up to the nearer echoes by kind.
+    let by_range: u64 = ["under_1m", "1_to_2m", "2_to_3m", "from_3m"]
+        .iter()
+        .map(|k| u(&v, &format!("agreement.nearer_by_range.{k}")))
+        .sum();
+    let by_kind: u64 = ["nearer_face", "nearer_inside_corner", "nearer_outside_edge"]
+        .iter()
+        .map(|k| u(&v, &format!("agreement.{k}")))
+        .sum();
+    assert_eq!(by_range, by_kind);
     let fr = f(&v, "agreement.fraction");
     assert!((0.0..=1.0).contains(&fr) && fr == round4(within as f64 / conf as f64), "agreement.fraction {fr}");
     let inc = f(&v, "inconsistent_fraction");

@@ -28,6 +28,9 @@ pub struct Agreement {
     pub nearer_corner: u64,
     /// ... from an outside edge (diffraction, which the predictor does not model).
     pub nearer_edge: u64,
+    /// The nearer echoes (face, corner, edge) by the range they came from:
+    /// under 1 m, 1–2 m, 2–3 m, 3 m and beyond.
+    pub nearer_by_range: [u64; 4],
     /// ... of which the echo came from farther than predicted.
     pub farther: u64,
     /// Clean readings with nothing predicted at the true pose.
@@ -52,6 +55,12 @@ impl Agreement {
             "nearer_face": self.nearer_face,
             "nearer_inside_corner": self.nearer_corner,
             "nearer_outside_edge": self.nearer_edge,
+            "nearer_by_range": {
+                "under_1m": self.nearer_by_range[0],
+                "1_to_2m": self.nearer_by_range[1],
+                "2_to_3m": self.nearer_by_range[2],
+                "from_3m": self.nearer_by_range[3],
+            },
             "farther": self.farther,
             "nothing_predicted": self.nothing_predicted,
             "nothing_read": self.nothing_read,
@@ -81,12 +90,21 @@ pub fn measure(map: &StandardMap, mounts: &[Mount], readings: &[SimReading], kap
                     Some(z) if z.abs_diff(p.range_mm) <= p.tolerance_mm + 1 => a.within += 1,
                     None => a.silent += 1,
                     Some(z) if z > p.range_mm => a.farther += 1,
-                    Some(_) => match r.source {
-                        EchoSource::Mapped { kind: EchoKind::Face, .. } => a.nearer_face += 1,
-                        EchoSource::Mapped { kind: EchoKind::InsideCorner, .. } => a.nearer_corner += 1,
-                        EchoSource::Mapped { kind: EchoKind::OutsideEdge, .. } => a.nearer_edge += 1,
-                        _ => {}
-                    },
+                    Some(z) => {
+                        let kind = match r.source {
+                            EchoSource::Mapped { kind, .. } => Some(kind),
+                            _ => None,
+                        };
+                        match kind {
+                            Some(EchoKind::Face) => a.nearer_face += 1,
+                            Some(EchoKind::InsideCorner) => a.nearer_corner += 1,
+                            Some(EchoKind::OutsideEdge) => a.nearer_edge += 1,
+                            None => {}
+                        }
+                        if kind.is_some() {
+                            a.nearer_by_range[(z / 1000).min(3) as usize] += 1;
+                        }
+                    }
                 }
             }
             Some(_) => {}
