@@ -29,13 +29,13 @@
 //! not evidence), keeping the estimate in use until a new one is ready. The
 //! estimate is clamped to what a calibrated robot's odometry can be.
 //!
-//! Fixed memory (its settings, 18 floats and a counter: 108 bytes), no
+//! Fixed memory (18 floats and a counter: 84 bytes), no
 //! allocation, `f32`.
 //!
 //! ```
 //! use echoloc::referencing::calibration::{CalibrationConfig, OdometryCalibration, Standing};
 //! use echoloc::referencing::Motion;
-//! let mut cal = OdometryCalibration::new(CalibrationConfig::DEFAULT);
+//! let (cfg, mut cal) = (CalibrationConfig::DEFAULT, OdometryCalibration::new());
 //! // The odometry turns 2 % short and drifts 0.1°/m left; the filter, sure
 //! // of itself, follows the truth.
 //! let (mut truth, mut heading) = (0.0f32, 0.0f32);
@@ -45,10 +45,10 @@
 //!     let turn = match k % 40 { 0 => 1.5, 20 => -1.0, _ => 0.0 };
 //!     let u = Motion { dx: 0.2, dy: 0.0, dphi: turn * 0.98 + 0.2 * 0.1f32.to_radians() };
 //!     let _step = cal.corrected(&u); // what the filter would predict with
-//!     cal.take(&u, heading);
+//!     cal.take(&cfg, &u, heading);
 //!     truth += turn;
 //!     heading = echoloc::referencing::wrap(truth);
-//!     cal.end_cycle(heading, 0.001, Standing::Sure);
+//!     cal.end_cycle(&cfg, heading, 0.001, Standing::Sure);
 //! }
 //! let b = cal.estimate().unwrap();
 //! assert!((b.per_rad - (1.0 / 0.98 - 1.0)).abs() < 1e-3);
@@ -125,11 +125,12 @@ pub enum Standing {
     Lost,
 }
 
-/// The calibrator: the running sums and the weighted statistics of the samples.
-#[derive(Clone, Copy, Debug, PartialEq)]
+/// The calibrator: the running sums and the weighted statistics of the
+/// samples. Its settings are passed to each call, as the filter holds them
+/// (`EkfConfig::calibration`), the way [`super::recovery::Recent`] takes its own.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct OdometryCalibration {
-    cfg: CalibrationConfig,
     /// Running sums: odometry turn T, forward distance D, and filter heading
     /// minus odometry heading c.
     sums: [f32; 3],
@@ -149,18 +150,14 @@ const REBASE: f32 = 1024.0;
 
 impl OdometryCalibration {
     /// A calibrator with nothing learned.
-    pub const fn new(cfg: CalibrationConfig) -> Self {
-        Self { cfg, sums: [0.0; 3], heading: None, mean: [0.0; 3], cov: [[0.0; 3]; 3], samples: 0, estimate: None }
+    pub const fn new() -> Self {
+        Self { sums: [0.0; 3], heading: None, mean: [0.0; 3], cov: [[0.0; 3]; 3], samples: 0, estimate: None }
     }
 
-    /// The settings.
-    pub fn config(&self) -> &CalibrationConfig {
-        &self.cfg
-    }
-
-    /// The correction in use, if any.
+    /// The correction in use, if any (never one while the settings say off:
+    /// nothing is then fitted).
     pub fn estimate(&self) -> Option<HeadingBias> {
-        self.estimate.filter(|_| self.cfg.enabled)
+        self.estimate
     }
 
     /// Samples in the statistics now.
@@ -180,8 +177,8 @@ impl OdometryCalibration {
     /// [`Self::corrected`] gave it): the sums take the raw step. Called only
     /// once the filter has accepted the step, so a refused one counts for
     /// neither.
-    pub fn take(&mut self, u: &Motion, heading: f32) {
-        if !self.cfg.enabled {
+    pub fn take(&mut self, cfg: &CalibrationConfig, u: &Motion, heading: f32) {
+        if !cfg.enabled {
             return;
         }
         self.follow(heading);
@@ -193,8 +190,8 @@ impl OdometryCalibration {
     /// Ends a ring cycle: the filter's heading now, its σ (rad), and how it
     /// stands. A sure cycle with a small σ is a sample; a doubtful one is
     /// not; a lost one throws the statistics away.
-    pub fn end_cycle(&mut self, heading: f32, sigma_rad: f32, standing: Standing) {
-        if !self.cfg.enabled {
+    pub fn end_cycle(&mut self, cfg: &CalibrationConfig, heading: f32, sigma_rad: f32, standing: Standing) {
+        if !cfg.enabled {
             return;
         }
         self.follow(heading);
@@ -206,12 +203,12 @@ impl OdometryCalibration {
             Standing::Doubtful => return,
             Standing::Sure => {}
         }
-        if sigma_rad.is_nan() || sigma_rad > self.cfg.max_sigma_rad {
+        if sigma_rad.is_nan() || sigma_rad > cfg.max_sigma_rad {
             return;
         }
-        self.add();
-        if self.samples >= u32::from(self.cfg.min_samples) {
-            if let Some(b) = self.fit() {
+        self.add(cfg.memory);
+        if self.samples >= u32::from(cfg.min_samples) {
+            if let Some(b) = self.fit(cfg) {
                 self.estimate = Some(b);
             }
         }
@@ -226,13 +223,13 @@ impl OdometryCalibration {
         self.heading = Some(heading);
     }
 
-    fn add(&mut self) {
+    fn add(&mut self, memory: f32) {
         if self.samples == 0 {
             self.mean = self.sums;
             self.cov = [[0.0; 3]; 3];
         }
         self.samples = self.samples.saturating_add(1);
-        let w = (1.0 / self.samples as f32).max(1.0 / self.cfg.memory.max(1.0));
+        let w = (1.0 / self.samples as f32).max(1.0 / memory.max(1.0));
         let d = [self.sums[0] - self.mean[0], self.sums[1] - self.mean[1], self.sums[2] - self.mean[2]];
         for i in 0..3 {
             self.mean[i] += w * d[i];
@@ -250,11 +247,11 @@ impl OdometryCalibration {
 
     /// The least-squares biases of the statistics, clamped; `None` when the
     /// turn and the distance cannot be told apart.
-    fn fit(&self) -> Option<HeadingBias> {
+    fn fit(&self, cfg: &CalibrationConfig) -> Option<HeadingBias> {
         let c = &self.cov;
         let (tt, dd, td) = (c[0][0], c[1][1], c[0][1]);
         let det = tt * dd - td * td;
-        if !(tt > 0.0 && dd > 0.0 && det > self.cfg.min_independence * tt * dd) {
+        if !(tt > 0.0 && dd > 0.0 && det > cfg.min_independence * tt * dd) {
             return None;
         }
         let per_rad = (dd * c[0][2] - td * c[1][2]) / det;
@@ -262,7 +259,7 @@ impl OdometryCalibration {
         if !(per_rad.is_finite() && per_m.is_finite()) {
             return None;
         }
-        let (r, m) = (self.cfg.max_per_rad, self.cfg.max_per_m);
+        let (r, m) = (cfg.max_per_rad, cfg.max_per_m);
         Some(HeadingBias { per_rad: crate::f32math::clamp(per_rad, -r, r), per_m: crate::f32math::clamp(per_m, -m, m) })
     }
 }
@@ -274,7 +271,7 @@ mod tests {
     /// A drive of straight legs and turns; the filter's heading is the truth
     /// plus `noise(k)`. Returns the calibrator.
     fn drive(per_rad: f64, per_m: f64, noise: impl Fn(usize) -> f64, cycles: usize) -> OdometryCalibration {
-        let mut cal = OdometryCalibration::new(CalibrationConfig::DEFAULT);
+        let (cfg, mut cal) = (CalibrationConfig::DEFAULT, OdometryCalibration::new());
         let mut truth = 0.0f64;
         let mut rng = 0x2545_f491_4f6c_dd1du64;
         for k in 0..cycles {
@@ -287,9 +284,9 @@ mod tests {
             // The odometry: true turn over (1 + per_rad), and drift the other way.
             let odo = Motion { dx: dx as f32, dy: 0.0, dphi: (turn / (1.0 + per_rad) - per_m * dx) as f32 };
             let heading = wrap((truth + noise(k)) as f32);
-            cal.take(&odo, heading);
+            cal.take(&cfg, &odo, heading);
             truth += turn;
-            cal.end_cycle(wrap((truth + noise(k)) as f32), 0.005, Standing::Sure);
+            cal.end_cycle(&cfg, wrap((truth + noise(k)) as f32), 0.005, Standing::Sure);
         }
         cal
     }
@@ -323,11 +320,13 @@ mod tests {
         assert_eq!(cal.estimate(), None);
         let u = Motion { dx: 0.3, dy: 0.01, dphi: 0.2 };
         assert_eq!(cal.corrected(&u), u);
-        let mut off = OdometryCalibration::new(CalibrationConfig::OFF);
-        off.take(&u, 0.0);
-        assert_eq!(off.corrected(&u), u);
-        off.end_cycle(1.0, 0.0, Standing::Sure);
+        let mut off = OdometryCalibration::new();
+        for _ in 0..200 {
+            off.take(&CalibrationConfig::OFF, &u, 0.0);
+            off.end_cycle(&CalibrationConfig::OFF, 1.0, 0.0, Standing::Sure);
+        }
         assert_eq!(off.samples(), 0);
+        assert_eq!(off.corrected(&u), u);
     }
 
     #[test]
@@ -347,9 +346,10 @@ mod tests {
         assert_eq!(cal.estimate().unwrap().per_rad, CalibrationConfig::DEFAULT.max_per_rad);
         let kept = cal.estimate();
         let n = cal.samples();
-        cal.end_cycle(0.5, 0.001, Standing::Doubtful);
+        let cfg = CalibrationConfig::DEFAULT;
+        cal.end_cycle(&cfg, 0.5, 0.001, Standing::Doubtful);
         assert_eq!(cal.samples(), n);
-        cal.end_cycle(0.5, 0.001, Standing::Lost);
+        cal.end_cycle(&cfg, 0.5, 0.001, Standing::Lost);
         assert_eq!(cal.samples(), 0);
         assert_eq!(cal.estimate(), kept);
     }
@@ -357,10 +357,10 @@ mod tests {
     #[test]
     fn a_straight_drive_cannot_tell_turn_from_drift() {
         // Only driving: no turn to fit, no estimate.
-        let mut cal = OdometryCalibration::new(CalibrationConfig::DEFAULT);
+        let (cfg, mut cal) = (CalibrationConfig::DEFAULT, OdometryCalibration::new());
         for _ in 0..500 {
-            cal.take(&Motion { dx: 0.2, dy: 0.0, dphi: 0.001 }, 0.0);
-            cal.end_cycle(0.0, 0.001, Standing::Sure);
+            cal.take(&cfg, &Motion { dx: 0.2, dy: 0.0, dphi: 0.001 }, 0.0);
+            cal.end_cycle(&cfg, 0.0, 0.001, Standing::Sure);
         }
         assert_eq!(cal.estimate(), None);
     }

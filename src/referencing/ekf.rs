@@ -256,7 +256,7 @@ impl Ekf {
             recent: Recent::new(),
             recoveries: 0,
             last_recovery: None,
-            calibration: OdometryCalibration::new(cfg.calibration),
+            calibration: OdometryCalibration::new(),
         })
     }
 
@@ -287,7 +287,7 @@ impl Ekf {
         if !in_range(&next) {
             return Err(EkfError::OutOfRange);
         }
-        self.calibration.take(raw, self.x[2]);
+        self.calibration.take(&self.cfg.calibration, raw, self.x[2]);
         let d = sqrt(u.dx * u.dx + u.dy * u.dy);
         let turn = libm::fabsf(u.dphi);
         let c = &self.cfg;
@@ -443,7 +443,7 @@ impl Ekf {
             (false, 0) => Standing::Sure,
             (false, _) => Standing::Doubtful,
         };
-        self.calibration.end_cycle(self.x[2], sqrt(self.p[2][2]), standing);
+        self.calibration.end_cycle(&self.cfg.calibration, self.x[2], sqrt(self.p[2][2]), standing);
         c
     }
 
