@@ -91,17 +91,12 @@ pub fn measure(map: &StandardMap, mounts: &[Mount], readings: &[SimReading], kap
                     None => a.silent += 1,
                     Some(z) if z > p.range_mm => a.farther += 1,
                     Some(z) => {
-                        let kind = match r.source {
-                            EchoSource::Mapped { kind, .. } => Some(kind),
-                            _ => None,
-                        };
-                        match kind {
-                            Some(EchoKind::Face) => a.nearer_face += 1,
-                            Some(EchoKind::InsideCorner) => a.nearer_corner += 1,
-                            Some(EchoKind::OutsideEdge) => a.nearer_edge += 1,
-                            None => {}
-                        }
-                        if kind.is_some() {
+                        if let EchoSource::Mapped { kind, .. } = r.source {
+                            match kind {
+                                EchoKind::Face => a.nearer_face += 1,
+                                EchoKind::InsideCorner => a.nearer_corner += 1,
+                                EchoKind::OutsideEdge => a.nearer_edge += 1,
+                            }
                             a.nearer_by_range[(z / 1000).min(3) as usize] += 1;
                         }
                     }
