@@ -112,7 +112,7 @@ pub fn start(log: &Log, given: Option<[f64; 3]>) -> Start {
         .or_else(|| log.rows.iter().find_map(|r| r.reference))
         .or_else(|| log.rows.first().map(|r| r.odometry))
         .unwrap_or_default();
-    Start { pose: pose.map(|v| v as f32), sigma: START_SIGMA, recovery: true, robust: true, calibration: true }
+    Start::with_everything(pose.map(|v| v as f32), START_SIGMA)
 }
 
 pub fn replay_cmd(a: &ReplayArgs) -> Result<String, LabError> {

@@ -176,6 +176,13 @@ pub struct Start {
     pub calibration: bool,
 }
 
+impl Start {
+    /// At `pose` with standard deviations `sigma`, every part of the EKF on.
+    pub fn with_everything(pose: [f32; 3], sigma: [f32; 3]) -> Self {
+        Self { pose, sigma, recovery: true, robust: true, calibration: true }
+    }
+}
+
 /// A scenario's records as steps: ranges from the echo times by the
 /// scenario's speed of sound, firing times unwrapped (they wrap at 2³² µs,
 /// 71 min).

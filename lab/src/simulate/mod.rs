@@ -156,7 +156,7 @@ pub fn simulate_cmd(a: &SimulateArgs) -> Result<String, LabError> {
 
 /// Where a scenario's filters start.
 pub fn start_of(h: &Header) -> filters::Start {
-    filters::Start { pose: h.start, sigma: h.start_sigma, recovery: true, robust: true, calibration: true }
+    filters::Start::with_everything(h.start, h.start_sigma)
 }
 
 /// The run as a plain log: each step's time, transducer and range (what the
