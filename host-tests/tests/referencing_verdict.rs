@@ -23,6 +23,7 @@ fn pred(range_mm: u32, kappa: Kappa, tolerance_mm: u32) -> Prediction {
         point: Point::new(0, 0),
         tolerance_mm,
         case: Case::II,
+        nearer_mm: None,
     }
 }
 
@@ -44,7 +45,13 @@ fn oracle(reading: Reading, p: Option<&Prediction>, cfg: &VerdictConfig) -> Verd
             if d.abs() <= p.tolerance_mm as i128 + cfg.timing_mm as i128 {
                 Verdict::Confirmed
             } else if d < 0 {
-                Verdict::UnknownObstacle
+                // Short, but no shorter than a nearer mapped surface less the tolerance.
+                match p.nearer_mm {
+                    Some(n) if range_mm as i128 + p.tolerance_mm as i128 + cfg.timing_mm as i128 >= n as i128 => {
+                        Verdict::Inconclusive
+                    }
+                    _ => Verdict::UnknownObstacle,
+                }
             } else {
                 Verdict::RemovedOrMissed
             }
@@ -182,11 +189,18 @@ proptest! {
         min_range in prop_oneof![Just(408u32), 0u32..1000],
         kappa_high in any::<u16>(),
         near in -400i64..400,
+        nearer in prop_oneof![Just(None), (0u32..6000).prop_map(Some), any::<u32>().prop_map(Some)],
     ) {
-        let p = pred(range, Kappa::from_bits(kappa), tol);
+        let p = Prediction { nearer_mm: nearer, ..pred(range, Kappa::from_bits(kappa), tol) };
         let cfg = VerdictConfig { timing_mm: timing, kappa_high: Kappa::from_bits(kappa_high), min_range_mm: min_range };
         // Often put the echo near the prediction's tolerance edges.
         let r = match r {
+            // ... or the nearer surface's.
+            Reading::Echo { range_mm } if range_mm % 3 == 1 && nearer.is_some() => {
+                let n = nearer.unwrap_or(0) as i64;
+                let edge = n - (tol as i64 + timing as i64) + near / 100;
+                Reading::Echo { range_mm: edge.clamp(0, u32::MAX as i64) as u32 }
+            }
             Reading::Echo { range_mm } if range_mm % 2 == 0 => {
                 let edge = range as i64 + near.signum() * (tol as i64 + timing as i64) + near / 100;
                 Reading::Echo { range_mm: edge.clamp(0, u32::MAX as i64) as u32 }

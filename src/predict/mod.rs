@@ -74,12 +74,19 @@ pub struct PredictParams {
     pub tolerance_mm: u32,
     /// ... plus this many thousandths of the range.
     pub tolerance_permille: u32,
+    /// The nearer-surface check ([`Prediction::nearer_mm`]): a face seen
+    /// within this cone arc deviation, degrees, or any corner, nearer than
+    /// the echo point makes a prediction ambiguous. `None`: no check (the
+    /// paper's predictor as printed). With the exact strategy only: the
+    /// others do not find every piece in the window.
+    pub nearer_delta_deg: Option<f32>,
 }
 
 impl PredictParams {
     /// Defaults around `window`: exact collection, τ_κ = 0.5, 50 mm
     /// increments, tolerance 30 mm + 1 % of the range (the Polaroid ranging
-    /// module's stated accuracy).
+    /// module's stated accuracy), and the nearer-surface check for faces
+    /// within 2·δ_max.
     pub fn new(window: WindowParams) -> Self {
         Self {
             window,
@@ -88,6 +95,7 @@ impl PredictParams {
             step_mm: 50,
             tolerance_mm: 30,
             tolerance_permille: 10,
+            nearer_delta_deg: Some(2.0 * window.delta_max_deg),
         }
     }
 }
@@ -130,6 +138,15 @@ pub struct Prediction {
     pub tolerance_mm: u32,
     /// Which case produced it.
     pub case: Case,
+    /// The range, mm, of the nearest mapped surface in the window that lies
+    /// nearer than the echo point by more than the tolerance and that a
+    /// sonar may still hear although the paper's tests pass over it: a
+    /// corner (an outside edge diffracts, an inside corner retro-reflects)
+    /// or a face seen beyond δ_max but within
+    /// [`PredictParams::nearer_delta_deg`]. `None` when there is none (or
+    /// the check is off). A prediction with one is ambiguous: a shorter echo
+    /// may be the map's own.
+    pub nearer_mm: Option<u32>,
 }
 
 /// Why prediction failed.
@@ -225,22 +242,21 @@ pub fn predict<M: MapSource + ?Sized, K: Credence + ?Sized>(
     let shift = (u64::BITS - r2_max.leading_zeros()).saturating_sub(16);
     let scale = (1u64 << shift) as f32;
     let area = sector.bbox();
-    let q = map
-        .for_each_candidate_box(area, |id, bbox| {
-            // Beside the cone: nothing of it in the window. (Worth it before the
-            // pseudo-path tests; the exact strategy's own clipping is cheaper.)
-            if params.strategy == Strategy::PseudoPaths && sector.box_outside_wedge(&bbox) {
-                return;
-            }
-            let d2 = box_distance2(o, &bbox);
-            if d2 > r2_max {
-                return; // nothing of it within R_max
-            }
-            if keys.push(((d2 >> shift) as u32) << 16 | id as u32).is_err() {
-                overflow = true;
-            }
-        })
-        .map_err(|e| PredictError::Collect(CollectError::Map(e)))?;
+    let visit = |id, bbox: Rect| {
+        // Beside the cone: nothing of it in the window. (Worth it before the
+        // pseudo-path tests; the exact strategy's own clipping is cheaper.)
+        if params.strategy == Strategy::PseudoPaths && sector.box_outside_wedge(&bbox) {
+            return;
+        }
+        let d2 = box_distance2(o, &bbox);
+        if d2 > r2_max {
+            return; // nothing of it within R_max
+        }
+        if keys.push(((d2 >> shift) as u32) << 16 | id as u32).is_err() {
+            overflow = true;
+        }
+    };
+    let q = map.for_each_candidate_box(area, visit).map_err(|e| PredictError::Collect(CollectError::Map(e)))?;
     if overflow {
         return predict_unpruned(map, window, params, credence);
     }
@@ -274,7 +290,18 @@ pub fn predict<M: MapSource + ?Sized, K: Credence + ?Sized>(
         let occluders = (params.strategy == Strategy::Exact).then_some((&keys[..], area, scale));
         search_piece(map, window, &piece, params, credence, occluders, Some(oblique_limit), &mut best, &mut stats);
     }
-    Ok((best.map(|(_, p)| p), stats))
+    let mut found = best.map(|(_, p)| p);
+    if let (Some(p), Some(delta), Strategy::Exact) = (found.as_mut(), params.nearer_delta_deg, params.strategy) {
+        // Every piece with a point nearer than the echo is among the keys
+        // (they hold every box within R_max), in order of box distance.
+        let lim = p.range_mm.saturating_sub(p.tolerance_mm) as f32;
+        let mut near = Nearer::new(window, delta, p);
+        for &key in keys.iter().take_while(|&&k| (k >> 16) as f32 * scale <= lim * lim) {
+            near.piece(map, key as u16, Some((&keys[..], area, scale)), &mut stats);
+        }
+        p.nearer_mm = near.found();
+    }
+    Ok((found, stats))
 }
 
 /// Sorts the candidate keys ascending without a panic path (the firmware's
@@ -338,7 +365,139 @@ pub fn predict_unpruned<M: MapSource + ?Sized, K: Credence + ?Sized>(
         let Some(piece) = map.piece(id) else { continue };
         search_piece(map, window, &piece, params, credence, None, None, &mut best, &mut stats);
     }
-    Ok((best.map(|(_, p)| p), stats))
+    let mut found = best.map(|(_, p)| p);
+    if let (Some(p), Some(delta), Strategy::Exact) = (found.as_mut(), params.nearer_delta_deg, params.strategy) {
+        // The beacons are every piece that meets the window.
+        let mut near = Nearer::new(window, delta, p);
+        for &id in &beacons {
+            near.piece(map, id, None, &mut stats);
+        }
+        p.nearer_mm = near.found();
+    }
+    Ok((found, stats))
+}
+
+/// The search for [`Prediction::nearer_mm`] once `p` is known: fed the
+/// pieces (every piece with a point nearer than `p`'s echo must be among
+/// them), it keeps the nearest point of a front edge inside the window
+/// (from `R_min` to `p`'s range less its tolerance), not occluded, that is
+/// an end of its edge (a corner) or is seen within the check's δ of the
+/// edge's normal. `p`'s own edge is left out: its nearer
+/// part failed κ, not the geometry. The nearest point of an edge's part
+/// also has its least δ (Proposition 2), so that point and the edge's ends
+/// decide an edge; the answer does not depend on the order of the pieces.
+struct Nearer<'w> {
+    window: &'w Window,
+    /// `(sin, cos)` of the δ limit.
+    lim: (f32, f32),
+    min_range: f32,
+    piece: u16,
+    edge: u8,
+    limit: f32,
+    nearest: f32,
+}
+
+impl<'w> Nearer<'w> {
+    fn new(window: &'w Window, delta_deg: f32, p: &Prediction) -> Self {
+        let limit = p.range_mm.saturating_sub(p.tolerance_mm) as f32;
+        let lim = crate::f32math::sin_cos(delta_deg.to_radians());
+        let min_range = window.sector.r_min_mm as f32;
+        Self { window, lim, min_range, piece: p.piece, edge: p.edge, limit, nearest: limit }
+    }
+
+    // One copy per map type, not one inlined into each caller (flash).
+    #[inline(never)]
+    fn piece<M: MapSource + ?Sized>(
+        &mut self,
+        map: &M,
+        id: u16,
+        occluders: Option<(&[u32], Rect, f32)>,
+        stats: &mut PredictStats,
+    ) {
+        let sector = &self.window.sector;
+        let o = sector.apex;
+        let Some(piece) = map.piece(id) else { return };
+        let shape = piece.shape;
+        let t = shape.tvector(o);
+        if t.is_inside() {
+            return;
+        }
+        let fronts = shape.front_surfaces(t) & !piece.internal;
+        for edge in 0..shape.edge_count() {
+            if fronts & (1 << edge) == 0 || (id == self.piece && edge as u8 == self.edge) {
+                continue;
+            }
+            let (a, b) = shape.edge(edge);
+            // The wedge's part; the ranges cut it below.
+            let Some(c) = sector.clip_edge(a, b) else { continue };
+            let (lo, hi) = (c.lo.to_f32(), c.hi.to_f32());
+            let ao = (diff_f32(a.x, o.x), diff_f32(a.y, o.y));
+            let e = (diff_f32(b.x, a.x), diff_f32(b.y, a.y));
+            let ee = e.0 * e.0 + e.1 * e.1;
+            if ee == 0.0 {
+                continue;
+            }
+            // The part nearer than the nearest so far, less what is blanked.
+            let Some((q1, q2)) = roots(ao, e, self.nearest) else { continue };
+            let (lo, hi) = (fmax(lo, q1), fmin(hi, q2));
+            if lo > hi {
+                continue;
+            }
+            let mut parts = [(lo, hi), (1.0, 0.0)];
+            if let Some((p1, p2)) = roots(ao, e, self.min_range) {
+                parts = [(lo, fmin(hi, p1)), (fmax(lo, p2), hi)];
+            }
+            let foot = -(ao.0 * e.0 + ao.1 * e.1) / ee;
+            let ctx =
+                EdgeCtx { o, a, b, axis: (0.0, 0.0), piece: id, obstacle: piece.obstacle, edge: edge as u8, occluders };
+            for (x, y) in parts {
+                if x > y {
+                    continue;
+                }
+                // The part's nearest point (its least δ), and the edge's
+                // ends where the part holds them: corners echo at any δ.
+                self.point(map, &ctx, ao, e, crate::f32math::clamp(foot, x, y), stats);
+                if x <= 0.0 {
+                    self.point(map, &ctx, ao, e, 0.0, stats);
+                }
+                if y >= 1.0 {
+                    self.point(map, &ctx, ao, e, 1.0, stats);
+                }
+            }
+        }
+    }
+
+    /// The point at `s` along the edge (`ao`: its start from the
+    /// transducer, `e`: the edge), if nearer than the nearest so far, a
+    /// corner or seen within the δ limit, and not occluded. Not inlined: it
+    /// runs three times an edge, and flash is tight.
+    #[inline(never)]
+    fn point<M: MapSource + ?Sized>(
+        &mut self,
+        map: &M,
+        ctx: &EdgeCtx<'_>,
+        ao: (f32, f32),
+        e: (f32, f32),
+        s: f32,
+        stats: &mut PredictStats,
+    ) {
+        let v = (ao.0 + s * e.0, ao.1 + s * e.1);
+        let range = crate::f32math::sqrt(v.0 * v.0 + v.1 * v.1);
+        if range >= self.nearest {
+            return;
+        }
+        // δ within the limit: |e·v|·cos ≤ |e×v|·sin.
+        let along = (e.0 * v.0 + e.1 * v.1).abs();
+        let across = (e.0 * v.1 - e.1 * v.0).abs();
+        let corner = s <= 0.0 || s >= 1.0;
+        if (corner || along * self.lim.1 <= across * self.lim.0) && !occluded(map, ctx, v, range, stats) {
+            self.nearest = range;
+        }
+    }
+
+    fn found(&self) -> Option<u32> {
+        (self.nearest < self.limit).then(|| libm::roundf(self.nearest) as u32)
+    }
 }
 
 /// Searches every front edge of one beacon that meets the window.
@@ -590,6 +749,7 @@ fn search_edge<M: MapSource + ?Sized, K: Credence + ?Sized>(
                             point,
                             tolerance_mm: tol,
                             case,
+                            nearer_mm: None,
                         },
                     ));
                     break;

@@ -36,7 +36,9 @@ pub enum Verdict {
     /// No echo, as predicted.
     NothingAsPredicted,
     /// Nothing to conclude: no echo where κ was below the "high" mark, a
-    /// prediction nearer than the module can range, or an invalid reading.
+    /// prediction nearer than the module can range, an echo short of an
+    /// ambiguous prediction that a nearer mapped surface may have returned
+    /// ([`Prediction::nearer_mm`]), or an invalid reading.
     Inconclusive,
 }
 
@@ -81,7 +83,12 @@ pub fn judge(reading: Reading, prediction: Option<&Prediction>, cfg: &VerdictCon
             if range_mm.abs_diff(p.range_mm) <= tol {
                 Verdict::Confirmed
             } else if range_mm < p.range_mm {
-                Verdict::UnknownObstacle
+                // From the nearer mapped surface on, the echo may be the map's own.
+                if p.nearer_mm.is_some_and(|n| range_mm.saturating_add(tol) >= n) {
+                    Verdict::Inconclusive
+                } else {
+                    Verdict::UnknownObstacle
+                }
             } else {
                 Verdict::RemovedOrMissed
             }
@@ -167,6 +174,7 @@ mod tests {
             point: Point::new(0, 0),
             tolerance_mm: 50,
             case: Case::I,
+            nearer_mm: None,
         }
     }
 
@@ -188,6 +196,13 @@ mod tests {
         assert_eq!(j(Reading::Invalid, Some(&p)), Verdict::Inconclusive);
         let near = pred(300, 0.9);
         assert_eq!(j(Reading::Echo { range_mm: 300 }, Some(&near)), Verdict::Inconclusive);
+        // A mapped corner at 1 400 mm in the beam: an echo from it on (less
+        // the tolerance) may be the map's own; nearer still, it is not.
+        let ambiguous = Prediction { nearer_mm: Some(1400), ..p };
+        assert_eq!(j(Reading::Echo { range_mm: 1349 }, Some(&ambiguous)), Verdict::Inconclusive);
+        assert_eq!(j(Reading::Echo { range_mm: 1700 }, Some(&ambiguous)), Verdict::Inconclusive);
+        assert_eq!(j(Reading::Echo { range_mm: 1348 }, Some(&ambiguous)), Verdict::UnknownObstacle);
+        assert_eq!(j(Reading::Echo { range_mm: 2000 }, Some(&ambiguous)), Verdict::Confirmed);
     }
 
     #[test]
