@@ -53,7 +53,8 @@ impl Fixture {
 }
 
 fn setup(map: &MapView<'_>) -> ReplaySetup<16> {
-    ReplaySetup::standard(PredictParams::new(WindowParams { tb_mm: map.buffer_mm(), ..WindowParams::MARGE })).unwrap()
+    ReplaySetup::standard(PredictParams::new(WindowParams { tb_mm: map.buffer_mm(), ..WindowParams::POLAROID_6500 }))
+        .unwrap()
 }
 
 fn mounts(s: &Scenario<'_>) -> Vec<Mount> {

@@ -106,6 +106,13 @@ impl WindowParams {
         tb_mm: 300,
     };
 
+    /// MARGE's window with `R_min` where a Polaroid 6500 ranging module
+    /// starts to hear: its blanking, 2.38 ms, 408 mm at 20 °C (the modules
+    /// of a Pioneer ring; the verdicts' `VerdictConfig::POLAROID` judges
+    /// from the same range). The credence net's input domain starts at
+    /// 500 mm: nearer ranges are rated as 500 mm, where an echo is weaker.
+    pub const POLAROID_6500: WindowParams = WindowParams { r_min_mm: 408, ..WindowParams::MARGE };
+
     /// Checks every field.
     pub fn validate(&self) -> Result<(), WindowError> {
         if self.r_max_mm == 0 || self.r_max_mm > MAX_RANGE_MM || self.r_min_mm >= self.r_max_mm {

@@ -63,7 +63,8 @@ pub fn scenario_partition() -> Option<&'static [u8]> {
 
 /// The loop's settings on this board for `map`.
 pub fn setup(map: &MapView<'_>) -> Option<ReplaySetup<TRANSDUCERS>> {
-    ReplaySetup::standard(PredictParams::new(WindowParams { tb_mm: map.buffer_mm(), ..WindowParams::MARGE })).ok()
+    ReplaySetup::standard(PredictParams::new(WindowParams { tb_mm: map.buffer_mm(), ..WindowParams::POLAROID_6500 }))
+        .ok()
 }
 
 /// What a replay on the board measured.

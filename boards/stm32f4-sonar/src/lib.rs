@@ -262,9 +262,9 @@ impl embedded_io::Write for HostPort {
 
 /// The window and prediction settings for a map buffered by `tb_mm`: MARGE's
 /// window (`R_max` 5.5 m, as the module listens), exact beacon collection,
-/// τ_κ = 0.5, the Polaroid's 30 mm + 1 % tolerance.
+/// τ_κ = 0.5, the Polaroid's 30 mm + 1 % tolerance, `R_min` at its blanking.
 pub fn predict_params(tb_mm: u32) -> PredictParams {
-    PredictParams::new(WindowParams { tb_mm, ..WindowParams::MARGE })
+    PredictParams::new(WindowParams { tb_mm, ..WindowParams::POLAROID_6500 })
 }
 
 /// The verdict settings of this module: the core's Polaroid defaults with
