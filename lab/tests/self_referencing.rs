@@ -66,38 +66,51 @@ fn ekf_learns_the_odometry_errors_the_simulator_drew() {
     assert!(num(&off, "ekf.heading_rmse_deg") > h, "{off}");
 }
 
-/// Where the predictor is confident (κ ≥ 0.9) and the scene is clean, how
-/// often the simulated sonar reads within the prediction's tolerance. The
-/// issue asks ≥ 95 %; measured on these runs: 79 % on depot, 86 % on
-/// tb3_sandbox, nearly all misses being a *nearer* echo the predictor's
-/// signature tests rule out (outside-edge diffraction, faces at 15–30°
-/// incidence). The floors below guard today's figure; they are not the
-/// target.
+/// Where the predictor is confident (κ ≥ 0.9, no nearer mapped surface a
+/// sonar may hear in the beam) and the scene is clean, how often the
+/// simulated sonar reads within the prediction's tolerance: the issue's
+/// ≥ 95 % (measured on these runs: 97.9 % on depot, 99.3 % on
+/// tb3_sandbox; 79 % and 86 % before the nearer-surface check). And the
+/// check is informative, not a way to drop the hard cases: where it makes a
+/// κ-confident prediction ambiguous, the reading is (nearly always) either
+/// the prediction's or from the nearer surface's range on, and most
+/// κ-confident predictions stay unambiguous.
 #[test]
 fn predictor_and_simulated_sonar_agree_where_the_predictor_is_confident() {
-    for (map, floor) in [("depot.yaml", 0.75), ("tb3_sandbox.yaml", 0.8)] {
+    for map in ["depot.yaml", "tb3_sandbox.yaml"] {
         let m = shared_map(map);
         let v = simulate(&["--map", m.to_str().unwrap(), "--seed", "1", "--inconsistent", "0", "--distance-m", "60"]);
         let a = &v["agreement"];
         let (n, within) = (num(a, "confident"), num(a, "within_tolerance"));
-        assert!(n > 500.0, "{map}: too few confident predictions: {a}");
-        assert!(within / n >= floor, "{map}: agreement {} below {floor}: {a}", within / n);
-        // The misses are mostly nearer echoes, not farther ones or silence.
-        let nearer = num(a, "nearer_face") + num(a, "nearer_inside_corner") + num(a, "nearer_outside_edge");
-        assert!(nearer > 4.0 * (num(a, "farther") + num(a, "silent")), "{map}: {a}");
+        let amb = num(a, "ambiguous.confident_but_nearer_surface");
+        assert!(n > 400.0 && n + amb > 500.0, "{map}: too few confident predictions: {a}");
+        assert!(within / n >= 0.95, "{map}: agreement {} below 0.95: {a}", within / n);
+        let explained = num(a, "ambiguous.within_tolerance") + num(a, "ambiguous.from_the_nearer_surface");
+        assert!(explained >= 0.9 * amb, "{map}: the nearer surfaces do not explain the short echoes: {a}");
+        assert!(n > amb, "{map}: most confident predictions should stay unambiguous: {a}");
     }
 }
 
 /// With clutter, the verdicts flag unmapped objects: most unknown-obstacle
-/// verdicts are real (precision) and most echoes from unmapped objects are
-/// flagged (recall).
+/// verdicts are real (precision) and echoes from unmapped objects are
+/// flagged (recall). The nearer-surface check trades recall for precision:
+/// an echo a nearer mapped surface may have returned is inconclusive, not
+/// an unknown obstacle, which on this small arena (walls within a metre of
+/// most beams) leaves undecided many echoes of people standing in front of
+/// such a surface. Without the check, the same run: lower precision,
+/// higher recall (measured: 0.71 / 0.26 with it, 0.69 / 0.42 without).
 #[test]
 fn verdicts_find_unmapped_objects() {
     let m = shared_map("tb3_sandbox.yaml");
-    let v = simulate(&["--map", m.to_str().unwrap(), "--seed", "4", "--distance-m", "40", "--inconsistent", "0.4"]);
+    let args = ["--map", m.to_str().unwrap(), "--seed", "4", "--distance-m", "40", "--inconsistent", "0.4"];
+    let v = simulate(&args);
     let d = &v["detection"]["unknown_obstacle"];
-    assert!(num(d, "precision") > 0.5 && num(d, "recall") > 0.3, "{d}");
+    assert!(num(d, "precision") > 0.65 && num(d, "recall") > 0.2, "{d}");
     assert!(num(&v, "verdicts.confirmed") > 0.0 && num(&v, "verdicts.unknown_obstacle") > 0.0, "{v}");
+    let off = simulate(&[&args[..], &["--no-nearer-check"]].concat());
+    let o = &off["detection"]["unknown_obstacle"];
+    assert!(num(o, "precision") < num(d, "precision") && num(o, "recall") > num(d, "recall"), "with {d}, without {o}");
+    assert_eq!(off["dead_reckoning"], v["dead_reckoning"]);
 }
 
 /// The QEMU board's scenario (`boards/qemu-mps2-an386/depot.scn`, replayed

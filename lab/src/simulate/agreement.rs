@@ -15,7 +15,10 @@ use super::world::{EchoKind, EchoSource, SimReading};
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Agreement {
     /// Clean readings (consistent with the map) whose prediction at the true
-    /// pose has κ ≥ the confidence mark.
+    /// pose has κ ≥ the confidence mark and is not ambiguous (no nearer
+    /// mapped surface a sonar may hear, [`Prediction::nearer_mm`]).
+    ///
+    /// [`Prediction::nearer_mm`]: echoloc::predict::Prediction::nearer_mm
     pub confident: u64,
     /// ... of which the reading is within the prediction's tolerance.
     pub within: u64,
@@ -33,6 +36,13 @@ pub struct Agreement {
     pub nearer_by_range: [u64; 4],
     /// ... of which the echo came from farther than predicted.
     pub farther: u64,
+    /// Clean readings whose prediction has κ ≥ the mark but is ambiguous ...
+    pub ambiguous: u64,
+    /// ... of which the reading is within the prediction's tolerance ...
+    pub ambiguous_within: u64,
+    /// ... or from the nearer surface's range on (within tolerance) to the
+    /// prediction's.
+    pub ambiguous_nearer: u64,
     /// Clean readings with nothing predicted at the true pose.
     pub nothing_predicted: u64,
     /// ... of which nothing came back either.
@@ -62,6 +72,11 @@ impl Agreement {
                 "from_3m": self.nearer_by_range[3],
             },
             "farther": self.farther,
+            "ambiguous": {
+                "confident_but_nearer_surface": self.ambiguous,
+                "within_tolerance": self.ambiguous_within,
+                "from_the_nearer_surface": self.ambiguous_nearer,
+            },
             "nothing_predicted": self.nothing_predicted,
             "nothing_read": self.nothing_read,
         })
@@ -69,10 +84,20 @@ impl Agreement {
 }
 
 /// Predicts every clean reading at its true pose and counts agreement;
-/// `kappa_min` is the confidence mark.
-pub fn measure(map: &StandardMap, mounts: &[Mount], readings: &[SimReading], kappa_min: f32) -> Agreement {
+/// `kappa_min` is the confidence mark; `nearer_check`: whether predictions
+/// carry the nearer-surface check (without it none is ambiguous).
+pub fn measure(
+    map: &StandardMap,
+    mounts: &[Mount],
+    readings: &[SimReading],
+    kappa_min: f32,
+    nearer_check: bool,
+) -> Agreement {
     let net = CredenceNet::shipped();
-    let params = predict_params(map.buffer_mm());
+    let mut params = predict_params(map.buffer_mm());
+    if !nearer_check {
+        params.nearer_delta_deg = None;
+    }
     let mut a = Agreement::default();
     for r in readings.iter().filter(|r| r.consistent && !matches!(r.source, EchoSource::Crosstalk | EchoSource::Noise))
     {
@@ -84,6 +109,14 @@ pub fn measure(map: &StandardMap, mounts: &[Mount], readings: &[SimReading], kap
         };
         let Ok((p, _)) = predict_mount(map, &pose, mount, &params, &net) else { continue };
         match p {
+            Some(p) if p.kappa.to_num::<f32>() >= kappa_min && p.nearer_mm.is_some() => {
+                a.ambiguous += 1;
+                match (r.range_mm, p.nearer_mm) {
+                    (Some(z), _) if z.abs_diff(p.range_mm) <= p.tolerance_mm + 1 => a.ambiguous_within += 1,
+                    (Some(z), Some(n)) if z < p.range_mm && z + p.tolerance_mm + 1 >= n => a.ambiguous_nearer += 1,
+                    _ => {}
+                }
+            }
             Some(p) if p.kappa.to_num::<f32>() >= kappa_min => {
                 a.confident += 1;
                 match r.range_mm {

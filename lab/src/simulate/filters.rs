@@ -174,12 +174,16 @@ pub struct Start {
     /// Whether the EKF learns the odometry's systematic heading errors
     /// (`echoloc::referencing::calibration`); off only to measure what that does.
     pub calibration: bool,
+    /// Whether predictions carry the nearer-surface check
+    /// (`PredictParams::nearer_delta_deg`, which makes echoes a nearer mapped
+    /// surface may have returned inconclusive); off only to measure what it does.
+    pub nearer_check: bool,
 }
 
 impl Start {
     /// At `pose` with standard deviations `sigma`, every part of the EKF on.
     pub fn with_everything(pose: [f32; 3], sigma: [f32; 3]) -> Self {
-        Self { pose, sigma, recovery: true, robust: true, calibration: true }
+        Self { pose, sigma, recovery: true, robust: true, calibration: true, nearer_check: true }
     }
 }
 
@@ -211,10 +215,10 @@ pub fn steps_of_records(header: &Header, records: &[Record]) -> Result<Vec<Step>
         .collect())
 }
 
-/// The prediction settings of the boards: MARGE's window on the map's buffer.
-/// (`buffer_mm`: the map's C-space buffer.)
+/// The prediction settings of the boards: the Polaroid 6500's window on the
+/// map's buffer (`buffer_mm`).
 pub fn predict_params(buffer_mm: u32) -> PredictParams {
-    PredictParams::new(WindowParams { tb_mm: buffer_mm, ..WindowParams::MARGE })
+    PredictParams::new(WindowParams { tb_mm: buffer_mm, ..WindowParams::POLAROID_6500 })
 }
 
 fn compose(x: [f64; 3], u: &Motion) -> [f64; 3] {
@@ -236,7 +240,10 @@ pub fn run(
     progress: &mut dyn FnMut(f64),
 ) -> Result<Trace, String> {
     let net = CredenceNet::shipped();
-    let params = predict_params(map.buffer_mm());
+    let mut params = predict_params(map.buffer_mm());
+    if !start.nearer_check {
+        params.nearer_delta_deg = None;
+    }
     let verdicts = VerdictConfig::POLAROID;
     let mut cfg = EkfConfig::DEFAULT;
     if !start.recovery {

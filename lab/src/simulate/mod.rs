@@ -68,6 +68,10 @@ pub struct SimulateArgs {
     /// (`EkfConfig::calibration`), to measure what it does.
     #[arg(long = "no-calibration")]
     no_calibration: bool,
+    /// Predictions without the nearer-surface check
+    /// (`PredictParams::nearer_delta_deg`), to measure what it does.
+    #[arg(long = "no-nearer-check")]
+    no_nearer_check: bool,
     /// The filters are given only the readings consistent with the map, the
     /// others as silence: an oracle of the clutter, to tell the filter's
     /// failures from what the scene leaves to be seen. Not a method.
@@ -123,13 +127,14 @@ pub fn simulate_cmd(a: &SimulateArgs) -> Result<String, LabError> {
         recovery: !a.no_recovery,
         robust: !a.no_robust,
         calibration: !a.no_calibration,
+        nearer_check: !a.no_nearer_check,
         ..start_of(&header)
     };
     let trace = filters::run(&map, &mounts, &start, &steps, &mut |f| bar.set(0.5 + 0.5 * f))
         .map_err(|e| LabError(format!("{}: {e}", a.map.display())))?;
     bar.finish();
     let mut report = report(&trace, Some(&run));
-    let agreement = agreement::measure(&map, &mounts, &run.readings, AGREEMENT_KAPPA);
+    let agreement = agreement::measure(&map, &mounts, &run.readings, AGREEMENT_KAPPA, !a.no_nearer_check);
     if let Some(o) = report.as_object_mut() {
         o.insert("agreement".into(), agreement.json());
     }
