@@ -227,7 +227,9 @@ pub fn time_rings(
         let r = predict_ring(map, core::hint::black_box(pose), &PIONEER16, params, net, &mut out);
         let n = (elapsed(t0, ticks(syst)) * per_tick) as u64;
         if let Err(e) = r {
-            hprintln!("FAIL: ring at {:?}: {:?}", pose, e);
+            // In whole mm and mrad: the image then carries no float formatting.
+            let mrad = (pose.heading_rad * 1000.0) as i32;
+            hprintln!("FAIL: ring at ({} mm, {} mm, {} mrad): {:?}", pose.x_mm as i32, pose.y_mm as i32, mrad, e);
             t.ok = false;
         }
         t.predicted += out.iter().flatten().count();
