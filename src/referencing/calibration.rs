@@ -86,14 +86,15 @@ impl CalibrationConfig {
     /// Settings for the simulator's calibrated Pioneer-class robot
     /// (docs/self-referencing.md): a fit over all samples up to 5 000 cycles
     /// (about 50 min), used after 100 (a minute), sampled while the heading σ
-    /// is under 1°; clamped to 3 % of a turn and 0.57°/m (a UMBmark-
+    /// is under 3° (1° kept a filter with few readings from ever sampling:
+    /// docs/self-referencing.md); clamped to 3 % of a turn and 0.57°/m (a UMBmark-
     /// calibrated robot's wheel-diameter error of 0.2 % over a 0.33 m
     /// wheelbase drifts 0.35°/m).
     pub const DEFAULT: Self = Self {
         enabled: true,
         memory: 5000.0,
         min_samples: 100,
-        max_sigma_rad: 0.017_453_3,
+        max_sigma_rad: 0.052_359_88,
         max_per_rad: 0.03,
         max_per_m: 0.01,
         min_independence: 0.05,
