@@ -242,21 +242,22 @@ pub fn predict<M: MapSource + ?Sized, K: Credence + ?Sized>(
     let shift = (u64::BITS - r2_max.leading_zeros()).saturating_sub(16);
     let scale = (1u64 << shift) as f32;
     let area = sector.bbox();
-    let visit = |id, bbox: Rect| {
-        // Beside the cone: nothing of it in the window. (Worth it before the
-        // pseudo-path tests; the exact strategy's own clipping is cheaper.)
-        if params.strategy == Strategy::PseudoPaths && sector.box_outside_wedge(&bbox) {
-            return;
-        }
-        let d2 = box_distance2(o, &bbox);
-        if d2 > r2_max {
-            return; // nothing of it within R_max
-        }
-        if keys.push(((d2 >> shift) as u32) << 16 | id as u32).is_err() {
-            overflow = true;
-        }
-    };
-    let q = map.for_each_candidate_box(area, visit).map_err(|e| PredictError::Collect(CollectError::Map(e)))?;
+    let q = map
+        .for_each_candidate_box(area, |id, bbox| {
+            // Beside the cone: nothing of it in the window. (Worth it before the
+            // pseudo-path tests; the exact strategy's own clipping is cheaper.)
+            if params.strategy == Strategy::PseudoPaths && sector.box_outside_wedge(&bbox) {
+                return;
+            }
+            let d2 = box_distance2(o, &bbox);
+            if d2 > r2_max {
+                return; // nothing of it within R_max
+            }
+            if keys.push(((d2 >> shift) as u32) << 16 | id as u32).is_err() {
+                overflow = true;
+            }
+        })
+        .map_err(|e| PredictError::Collect(CollectError::Map(e)))?;
     if overflow {
         return predict_unpruned(map, window, params, credence);
     }
@@ -382,10 +383,10 @@ pub fn predict_unpruned<M: MapSource + ?Sized, K: Credence + ?Sized>(
 /// them), it keeps the nearest point of a front edge inside the window
 /// (from `R_min` to `p`'s range less its tolerance), not occluded, that is
 /// an end of its edge (a corner) or is seen within the check's δ of the
-/// edge's normal. `p`'s own edge is left out: its nearer
-/// part failed κ, not the geometry. The nearest point of an edge's part
-/// also has its least δ (Proposition 2), so that point and the edge's ends
-/// decide an edge; the answer does not depend on the order of the pieces.
+/// edge's normal. `p`'s own edge is left out: its nearer part failed κ, not
+/// the geometry. The nearest point of an edge's part also has its least δ
+/// (Proposition 2), so that point and the edge's ends decide an edge; the
+/// answer does not depend on the order of the pieces.
 struct Nearer<'w> {
     window: &'w Window,
     /// `(sin, cos)` of the δ limit.
@@ -470,7 +471,7 @@ impl<'w> Nearer<'w> {
     /// The point at `s` along the edge (`ao`: its start from the
     /// transducer, `e`: the edge), if nearer than the nearest so far, a
     /// corner or seen within the δ limit, and not occluded. Not inlined: it
-    /// runs three times an edge, and flash is tight.
+    /// is called from three places (flash).
     #[inline(never)]
     fn point<M: MapSource + ?Sized>(
         &mut self,
