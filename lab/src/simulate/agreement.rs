@@ -5,10 +5,10 @@
 
 use echoloc::credence::net::CredenceNet;
 use echoloc::map::StandardMap;
-use echoloc::predict::{predict_mount, Mount, Pose};
+use echoloc::predict::{predict_mount, Mount, Pose, Prediction};
 use serde_json::{json, Value};
 
-use super::filters::predict_params;
+use super::filters::predict_params_with;
 use super::world::{EchoKind, EchoSource, SimReading};
 
 /// The agreement counts.
@@ -94,10 +94,7 @@ pub fn measure(
     nearer_check: bool,
 ) -> Agreement {
     let net = CredenceNet::shipped();
-    let mut params = predict_params(map.buffer_mm());
-    if !nearer_check {
-        params.nearer_delta_deg = None;
-    }
+    let params = predict_params_with(map.buffer_mm(), nearer_check);
     let mut a = Agreement::default();
     for r in readings.iter().filter(|r| r.consistent && !matches!(r.source, EchoSource::Crosstalk | EchoSource::Noise))
     {
@@ -109,11 +106,11 @@ pub fn measure(
         };
         let Ok((p, _)) = predict_mount(map, &pose, mount, &params, &net) else { continue };
         match p {
-            Some(p) if p.kappa.to_num::<f32>() >= kappa_min && p.nearer_mm.is_some() => {
+            Some(p @ Prediction { nearer_mm: Some(n), .. }) if p.kappa.to_num::<f32>() >= kappa_min => {
                 a.ambiguous += 1;
-                match (r.range_mm, p.nearer_mm) {
-                    (Some(z), _) if z.abs_diff(p.range_mm) <= p.tolerance_mm + 1 => a.ambiguous_within += 1,
-                    (Some(z), Some(n)) if z < p.range_mm && z + p.tolerance_mm + 1 >= n => a.ambiguous_nearer += 1,
+                match r.range_mm {
+                    Some(z) if z.abs_diff(p.range_mm) <= p.tolerance_mm + 1 => a.ambiguous_within += 1,
+                    Some(z) if z < p.range_mm && z + p.tolerance_mm + 1 >= n => a.ambiguous_nearer += 1,
                     _ => {}
                 }
             }

@@ -221,6 +221,16 @@ pub fn predict_params(buffer_mm: u32) -> PredictParams {
     PredictParams::new(WindowParams { tb_mm: buffer_mm, ..WindowParams::POLAROID_6500 })
 }
 
+/// [`predict_params`], without the nearer-surface check unless
+/// `nearer_check` (off only to measure what it does).
+pub fn predict_params_with(buffer_mm: u32, nearer_check: bool) -> PredictParams {
+    let mut params = predict_params(buffer_mm);
+    if !nearer_check {
+        params.nearer_delta_deg = None;
+    }
+    params
+}
+
 fn compose(x: [f64; 3], u: &Motion) -> [f64; 3] {
     let (s, c) = x[2].sin_cos();
     let (dx, dy) = (f64::from(u.dx), f64::from(u.dy));
@@ -240,10 +250,7 @@ pub fn run(
     progress: &mut dyn FnMut(f64),
 ) -> Result<Trace, String> {
     let net = CredenceNet::shipped();
-    let mut params = predict_params(map.buffer_mm());
-    if !start.nearer_check {
-        params.nearer_delta_deg = None;
-    }
+    let params = predict_params_with(map.buffer_mm(), start.nearer_check);
     let verdicts = VerdictConfig::POLAROID;
     let mut cfg = EkfConfig::DEFAULT;
     if !start.recovery {
