@@ -125,3 +125,51 @@ fn a_failed_add_changes_nothing() {
     assert!(m.add_obstacle(ObstacleKind::Solid, &[&sq, &sq]).is_err(), "capacity: 2 pieces");
     assert_eq!((m.obstacles().len(), m.piece_count(), m.vertex_count()), (1, 1, 4));
 }
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 2000, ..ProptestConfig::default() })]
+
+    /// `Piece::front_edges` against `geo`: from a point outside a piece, the
+    /// edges with the point on their outer side (geo's orientation kernel),
+    /// lowest index first, but never a seam between two pieces of one
+    /// obstacle; from a point inside or on the piece, none.
+    #[test]
+    fn front_edges_face_the_point_and_skip_seams(
+        (w1, w2, h) in (1i32..400, 1i32..400, 1i32..400),
+        (x, y) in (-600i32..1000, -600i32..1000),
+    ) {
+        use geo::kernels::{Kernel, Orientation};
+        use geo::Intersects;
+        // Two rectangles side by side: the shared edge x = w1 is a seam of each.
+        let left = [Point::new(0, 0), Point::new(w1, 0), Point::new(w1, h), Point::new(0, h)];
+        let right = [Point::new(w1, 0), Point::new(w1 + w2, 0), Point::new(w1 + w2, h), Point::new(w1, h)];
+        let mut m: Box<M> = Box::default();
+        m.add_obstacle(ObstacleKind::Solid, &[&left, &right]).unwrap();
+        m.finish(0, 500).unwrap();
+        let o = Point::new(x, y);
+        let mut pieces = 0;
+        for piece in m.pieces() {
+            pieces += 1;
+            let ours: Vec<(u8, Point, Point)> = piece.front_edges(o).collect();
+            let outline: Vec<Point> = piece.shape.vertices().to_vec();
+            let inside = geo_polygon(&outline).intersects(&echoloc_host_tests::coord(o));
+            let mut theirs = Vec::new();
+            if !inside {
+                for i in 0..piece.shape.edge_count() {
+                    let (u, v) = piece.shape.edge(i);
+                    let seam = u.x == w1 && v.x == w1;
+                    let side = <f64 as geo::GeoNum>::Ker::orient2d(
+                        echoloc_host_tests::coord(u),
+                        echoloc_host_tests::coord(v),
+                        echoloc_host_tests::coord(o),
+                    );
+                    if side == Orientation::Clockwise && !seam {
+                        theirs.push((i as u8, u, v));
+                    }
+                }
+            }
+            prop_assert_eq!(&ours, &theirs, "piece {:?} from {:?}", outline, o);
+        }
+        prop_assert_eq!(pieces, 2);
+    }
+}

@@ -150,6 +150,46 @@ pub struct Piece<'a> {
     pub internal: u32,
 }
 
+impl<'a> Piece<'a> {
+    /// The edges of its true outline that face `o` (the t-vector's front
+    /// surfaces), seams left out, as `(index, start, end)`; none when `o`
+    /// is inside it (nothing of it is seen from there). The window search
+    /// and the nearer-surface check both walk these.
+    #[inline]
+    pub fn front_edges(&self, o: Point) -> FrontEdges<'a> {
+        let t = self.shape.tvector(o);
+        let mask = if t.is_inside() { 0 } else { self.shape.front_surfaces(t) & !self.internal };
+        FrontEdges { shape: self.shape, mask }
+    }
+}
+
+/// A piece's front edges ([`Piece::front_edges`]), lowest index first.
+#[derive(Clone, Copy, Debug)]
+pub struct FrontEdges<'a> {
+    shape: Convex<'a>,
+    /// Bit `i`: edge `i` is still to come.
+    mask: u32,
+}
+
+impl Iterator for FrontEdges<'_> {
+    type Item = (u8, Point, Point);
+
+    #[inline]
+    fn next(&mut self) -> Option<Self::Item> {
+        if self.mask == 0 {
+            return None;
+        }
+        let i = self.mask.trailing_zeros() as usize;
+        self.mask &= self.mask - 1;
+        // Edge i runs from vertex i to the next (the last closes the
+        // outline); `get`, so no index can panic (the mask is the shape's).
+        let v = self.shape.vertices();
+        let a = *v.get(i)?;
+        let b = *v.get(i + 1).or_else(|| v.first())?;
+        Some((i as u8, a, b))
+    }
+}
+
 /// Where a segment first meets the true map.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]

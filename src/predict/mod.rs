@@ -418,17 +418,10 @@ impl<'w> Nearer<'w> {
         let sector = &self.window.sector;
         let o = sector.apex;
         let Some(piece) = map.piece(id) else { return };
-        let shape = piece.shape;
-        let t = shape.tvector(o);
-        if t.is_inside() {
-            return;
-        }
-        let fronts = shape.front_surfaces(t) & !piece.internal;
-        for edge in 0..shape.edge_count() {
-            if fronts & (1 << edge) == 0 || (id == self.piece && edge as u8 == self.edge) {
+        for (edge, a, b) in piece.front_edges(o) {
+            if id == self.piece && edge == self.edge {
                 continue;
             }
-            let (a, b) = shape.edge(edge);
             // The wedge's part; the ranges cut it below.
             let Some(c) = sector.clip_edge(a, b) else { continue };
             let (lo, hi) = (c.lo.to_f32(), c.hi.to_f32());
@@ -449,8 +442,7 @@ impl<'w> Nearer<'w> {
                 parts = [(lo, fmin(hi, p1)), (fmax(lo, p2), hi)];
             }
             let foot = -(ao.0 * e.0 + ao.1 * e.1) / ee;
-            let ctx =
-                EdgeCtx { o, a, b, axis: (0.0, 0.0), piece: id, obstacle: piece.obstacle, edge: edge as u8, occluders };
+            let ctx = EdgeCtx { o, a, b, axis: (0.0, 0.0), piece: id, obstacle: piece.obstacle, edge, occluders };
             for (x, y) in parts {
                 if x > y {
                     continue;
@@ -520,18 +512,9 @@ fn search_piece<M: MapSource + ?Sized, K: Credence + ?Sized>(
 ) {
     let sector = &window.sector;
     let o = sector.apex;
-    let shape = piece.shape;
-    let t = shape.tvector(o);
-    if t.is_inside() {
-        return; // the transducer is inside this obstacle: nothing to see of it
-    }
     let axis = sector.axis_unit();
-    let fronts = shape.front_surfaces(t) & !piece.internal;
-    for edge in 0..shape.edge_count() {
-        if fronts & (1 << edge) == 0 {
-            continue;
-        }
-        let (a, b) = shape.edge(edge);
+    // None when the transducer is inside this obstacle: nothing to see of it.
+    for (edge, a, b) in piece.front_edges(o) {
         // An edge wholly beyond the best echo cannot give a nearer one:
         // skip its exact clipping (its box's distance bounds every point).
         if let Some((r, _)) = best {
@@ -550,7 +533,7 @@ fn search_piece<M: MapSource + ?Sized, K: Credence + ?Sized>(
         }
         let Some((lo, hi)) = sector.edge_window(a, b) else { continue };
         stats.edges += 1;
-        let ctx = EdgeCtx { o, a, b, axis, piece: piece.id, obstacle: piece.obstacle, edge: edge as u8, occluders };
+        let ctx = EdgeCtx { o, a, b, axis, piece: piece.id, obstacle: piece.obstacle, edge, occluders };
         search_edge(map, &ctx, lo, hi, sector.r_min_mm, sector.r_max_mm, params, credence, best, stats);
     }
 }
