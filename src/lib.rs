@@ -19,6 +19,7 @@
 //! | [`predict`] | range prediction: the four signature tests, Cases I–III, subsurface search, occlusion; rings of transducers |
 //! | [`map`] | the fixed-capacity obstacle map, its uniform grid index and its binary blob |
 //! | [`referencing`] | self-referencing: verdicts, the EKF over (x, y, φ), the paper's threshold method |
+//! | [`localize`] | finding itself: Monte Carlo localization in fixed memory, and the localizer's modes (searching, tracking, lost) |
 //! | [`f32math`] | sin, cos and √ in single precision (the M4F has no double-precision FPU) |
 //! | [`scenario`] | scenario files: a recorded run, versioned and CRC-checked, read in place; a replay bench that feeds one through the real driver |
 //! | [`link`] | the host link: versioned messages, postcard, COBS and CRC-32 frames over `embedded-io` |
@@ -72,6 +73,7 @@ pub mod f32math;
 pub mod geometry;
 #[cfg_attr(not(test), deny(clippy::indexing_slicing))]
 pub mod link;
+pub mod localize;
 pub mod map;
 pub mod predict;
 pub mod referencing;

@@ -156,17 +156,29 @@ fn triple(s: &str, what: &str) -> Result<(f64, f64, f64), LabError> {
 
 /// Loads MAP in any of its three forms into the firmware's map.
 pub fn load_map(path: &Path, buffer_mm: u32) -> Result<Box<StandardMap>, LabError> {
-    Ok(load_map_and_blob(path, buffer_mm)?.0)
+    Ok(load_map_and_blob_with(path, buffer_mm, None)?.0)
 }
 
 /// [`load_map`], with the blob the map was loaded from (read, or built here).
 pub fn load_map_and_blob(path: &Path, buffer_mm: u32) -> Result<(Box<StandardMap>, Vec<u8>), LabError> {
+    load_map_and_blob_with(path, buffer_mm, Some(map::FieldOptions::default()))
+}
+
+/// [`load_map_and_blob`], a source compiled with the localization field
+/// `field` (`None`: without one; a blob is read as it is).
+pub fn load_map_and_blob_with(
+    path: &Path,
+    buffer_mm: u32,
+    field: Option<map::FieldOptions>,
+) -> Result<(Box<StandardMap>, Vec<u8>), LabError> {
     let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
     if ext == "map" {
         return map::load_blob(path);
     }
-    let shapes = map::read_shapes(path)?;
-    let blob = map::build_map(&shapes, buffer_mm, 1000).map_err(|e| LabError(format!("{}: {e}", path.display())))?.0;
+    let opt = map::ImportOptions { field, ..map::ImportOptions::default() };
+    let src = map::read_source(path, &opt)?;
+    let blob =
+        map::compile_source(&src, buffer_mm, 1000, &opt).map_err(|e| LabError(format!("{}: {e}", path.display())))?.0;
     Ok((map::blob_to_map(&blob, path)?, blob))
 }
 

@@ -162,6 +162,17 @@ pub enum BlobError {
     },
     /// A compiled grid with more or fewer references than the boxes cover.
     GridCoverage,
+    /// A compiled map of an older version, without what this build needs
+    /// (version 2 has no localization field): compile the map again with
+    /// `echoloc-lab map import`.
+    Outdated {
+        /// The version found.
+        version: u16,
+        /// The version this build reads.
+        current: u16,
+    },
+    /// The compiled map's localization field does not validate.
+    Field(super::field::FieldError),
 }
 
 /// Why a map could not be encoded.
@@ -308,7 +319,8 @@ impl<const PIECES: usize, const VERTS: usize, const CELLS: usize, const REFS: us
     }
 
     fn load_inner(&mut self, blob: &[u8]) -> Result<(), BlobError> {
-        if blob.len() >= 6 && blob[4..6] == super::COMPILED_VERSION.to_le_bytes() {
+        let compiled = [super::COMPILED_VERSION, super::compiled::OUTDATED_VERSION].map(u16::to_le_bytes);
+        if blob.len() >= 6 && compiled.iter().any(|v| blob[4..6] == *v) {
             let view = super::MapView::new(blob)?;
             return self.load_view(&view);
         }

@@ -18,6 +18,9 @@
 //! cell starts        u32 × (cols·rows + 1), the last = refs
 //! refs               u16 × refs (piece ids, descending within a cell),
 //!                    zero-padded to a multiple of 4 bytes
+//! field              the localization field (`super::field`): header,
+//!                    row starts, runs, free bits, entries; an empty one
+//!                    when the map was compiled without it
 //! ```
 //!
 //! [`MapView::new`] checks everything once, in one pass over the sections,
@@ -34,6 +37,7 @@
 
 use bytemuck::{Pod, Zeroable};
 
+use super::field::{FieldParts, FieldView};
 use super::grid::GridRef;
 use super::source::{seams_of, MapSource};
 use super::{BlobError, Map, MapError, Obstacle, ObstacleKind, Piece, QueryStats, BLOB_HEADER_LEN};
@@ -43,8 +47,13 @@ use crate::geometry::{Convex, Point, Rect, MAX_PIECE_VERTICES};
 #[cfg(target_endian = "big")]
 compile_error!("compiled maps are read in place as little-endian words");
 
-/// The compiled map's blob version.
-pub const COMPILED_VERSION: u16 = 2;
+/// The compiled map's blob version: 3 since the localization field
+/// ([`super::field`]) was added; a version 2 blob is refused with
+/// [`BlobError::Outdated`] (compile it again with `echoloc-lab map import`).
+pub const COMPILED_VERSION: u16 = 3;
+
+/// The compiled version before the localization field.
+pub const OUTDATED_VERSION: u16 = 2;
 
 const COUNTS_LEN: usize = 48;
 
@@ -130,6 +139,7 @@ pub struct MapView<'a> {
     verts: &'a [Point],
     start: &'a [u32],
     refs: &'a [u16],
+    field: FieldView<'a>,
 }
 
 /// The byte sizes of the sections after the counts, from the counts.
@@ -164,11 +174,9 @@ impl<'a> MapView<'a> {
             .map_err(|_| BlobError::Misaligned)?;
         let sizes = section_sizes(&counts).ok_or(BlobError::SizeMismatch)?;
         let need = sizes.iter().try_fold(COUNTS_LEN as u64, |a, &s| a.checked_add(s)).ok_or(BlobError::SizeMismatch)?;
-        if (payload.len() as u64) < need {
+        // The field follows the refs and fills the rest of the payload.
+        if (payload.len() as u64) < need + super::field::FIELD_HEADER_LEN as u64 {
             return Err(BlobError::Truncated);
-        }
-        if payload.len() as u64 > need {
-            return Err(BlobError::TrailingBytes);
         }
         if counts.reserved != 0 {
             return Err(BlobError::ReservedByte { offset: BLOB_HEADER_LEN + COUNTS_LEN - 4 });
@@ -178,14 +186,17 @@ impl<'a> MapView<'a> {
         let pieces = section(payload, &mut at, sizes[1])?;
         let verts = section(payload, &mut at, sizes[2])?;
         let start = section(payload, &mut at, sizes[3])?;
-        let refs_bytes = payload.get(at..).ok_or(BlobError::Truncated)?;
+        let refs_end = at.checked_add(sizes[4] as usize).ok_or(BlobError::Truncated)?;
+        let refs_bytes = payload.get(at..refs_end).ok_or(BlobError::Truncated)?;
         let (refs_bytes, pad) = refs_bytes.split_at((counts.refs as usize).saturating_mul(2).min(refs_bytes.len()));
         if let Some(i) = pad.iter().position(|&b| b != 0) {
-            // The padding ends the blob, so its offset is in range.
-            return Err(BlobError::ReservedByte { offset: blob.len().saturating_sub(pad.len()).saturating_add(i) });
+            return Err(BlobError::ReservedByte {
+                offset: (BLOB_HEADER_LEN + refs_end).saturating_sub(pad.len()).saturating_add(i),
+            });
         }
         let refs = bytemuck::try_cast_slice(refs_bytes).map_err(|_| BlobError::Misaligned)?;
-        let view = Self { counts, obstacles, pieces, verts, start, refs };
+        let field = FieldView::parse(payload.get(refs_end..).ok_or(BlobError::Truncated)?)?;
+        let view = Self { counts, obstacles, pieces, verts, start, refs, field };
         view.check_pieces()?;
         view.check_grid()?;
         view.check_seams()?;
@@ -405,6 +416,11 @@ impl<'a> MapView<'a> {
     pub fn bounds(&self) -> Option<Rect> {
         self.pieces.iter().map(PieceRec::bbox).reduce(Rect::union)
     }
+
+    /// The localization field (empty when the map was compiled without one).
+    pub fn field(&self) -> &FieldView<'a> {
+        &self.field
+    }
 }
 
 impl MapSource for MapView<'_> {
@@ -459,12 +475,22 @@ fn check_header(blob: &[u8]) -> Result<&[u8], BlobError> {
     if blob.as_ptr() as usize % 4 != 0 {
         return Err(BlobError::Misaligned);
     }
-    super::blob::check_header(blob, COMPILED_VERSION)
+    match super::blob::check_header(blob, COMPILED_VERSION) {
+        Err(BlobError::UnsupportedVersion(OUTDATED_VERSION)) => {
+            Err(BlobError::Outdated { version: OUTDATED_VERSION, current: COMPILED_VERSION })
+        }
+        r => r,
+    }
 }
 
 impl<const PIECES: usize, const VERTS: usize, const CELLS: usize, const REFS: usize> Map<PIECES, VERTS, CELLS, REFS> {
-    /// The compiled blob's length for this map.
+    /// The compiled blob's length for this map, without a field.
     pub fn compiled_len(&self) -> usize {
+        self.compiled_len_with(&FieldParts::NONE)
+    }
+
+    /// The compiled blob's length for this map with `field`.
+    pub fn compiled_len_with(&self, field: &FieldParts<'_>) -> usize {
         let (_, cols, rows) = self.grid.dims();
         BLOB_HEADER_LEN
             + COUNTS_LEN
@@ -473,15 +499,24 @@ impl<const PIECES: usize, const VERTS: usize, const CELLS: usize, const REFS: us
             + 8 * self.verts.len()
             + 4 * (cols as usize * rows as usize + 1)
             + (2 * self.grid.refs_len()).next_multiple_of(4)
+            + field.len()
     }
 
-    /// Writes the finished map in its compiled form (version 2) into `out`,
-    /// returning the bytes written.
+    /// Writes the finished map in its compiled form (version 3) without a
+    /// localization field into `out`, returning the bytes written.
     pub fn compile(&self, out: &mut [u8]) -> Result<usize, super::EncodeError> {
+        self.compile_with_field(&FieldParts::NONE, out)
+    }
+
+    /// Writes the finished map in its compiled form (version 3) with the
+    /// localization field `field` (made on the host: `echoloc-lab map
+    /// import`) into `out`, returning the bytes written. The field is
+    /// written as given: a view of the blob checks it.
+    pub fn compile_with_field(&self, field: &FieldParts<'_>, out: &mut [u8]) -> Result<usize, super::EncodeError> {
         if !self.finished {
             return Err(super::EncodeError::NotFinished);
         }
-        let need = self.compiled_len();
+        let need = self.compiled_len_with(field);
         let out = out.get_mut(..need).ok_or(super::EncodeError::BufferTooSmall { need })?;
         out.fill(0);
         let g = self.grid.index();
@@ -530,6 +565,10 @@ impl<const PIECES: usize, const VERTS: usize, const CELLS: usize, const REFS: us
         for r in g.refs {
             put(&r.to_le_bytes());
         }
+        if g.refs.len() % 2 == 1 {
+            put(&[0, 0]);
+        }
+        field.write(&mut put);
         let crc = super::crc32(out.get(BLOB_HEADER_LEN..).unwrap_or(&[]));
         super::blob::write_header(out, COMPILED_VERSION, need - BLOB_HEADER_LEN, crc);
         Ok(need)

@@ -18,11 +18,14 @@ mod blob;
 mod compiled;
 #[cfg_attr(not(test), deny(clippy::indexing_slicing))]
 mod crc32;
+#[cfg_attr(not(test), deny(clippy::indexing_slicing))]
+pub mod field;
 mod grid;
 mod source;
 
 pub use blob::{BlobError, EncodeError, BLOB_HEADER_LEN, BLOB_MAGIC, BLOB_VERSION};
 pub use compiled::{Aligned, MapView, COMPILED_VERSION};
+pub use field::{Expected, FieldParts, FieldView};
 pub use crc32::{crc32, Crc32};
 pub use source::MapSource;
 

@@ -265,6 +265,43 @@ impl Ekf {
         })
     }
 
+    /// Restarts the filter at `x` with covariance `p` (a relocalisation:
+    /// the particles' hand-off, or a pose the robot's computer sent). Its
+    /// settings, its odometry calibration (a constant of the robot) and its
+    /// counts stay; the lost state, the bad-cycle run, the cycle's counts
+    /// and the recovery's readings (taken about the old estimate) go.
+    /// Refused, the filter left as it was, for a non-finite or out-of-range
+    /// pose or a non-finite covariance.
+    pub fn relocate(&mut self, x: [f32; 3], p: [[f32; 3]; 3]) -> Result<(), EkfError> {
+        if !x.iter().chain(p.iter().flatten()).all(|v| v.is_finite()) {
+            return Err(EkfError::NotFinite);
+        }
+        if !in_range(&x) {
+            return Err(EkfError::OutOfRange);
+        }
+        self.x = [x[0], x[1], wrap(x[2])];
+        self.p = p;
+        self.cycle = CycleUpdates::default();
+        self.bad_run = 0;
+        self.lost = false;
+        self.recent.clear();
+        self.condition();
+        Ok(())
+    }
+
+    /// [`Ekf::relocate`] with standard deviations `sigma` (m, m, rad) and
+    /// no correlation.
+    pub fn relocate_diagonal(&mut self, x: [f32; 3], sigma: [f32; 3]) -> Result<(), EkfError> {
+        if !sigma.iter().all(|v| v.is_finite() && *v >= 0.0) {
+            return Err(EkfError::NotFinite);
+        }
+        let mut p = [[0.0; 3]; 3];
+        for (i, row) in p.iter_mut().enumerate() {
+            row[i] = sigma[i] * sigma[i];
+        }
+        self.relocate(x, p)
+    }
+
     /// The state (x m, y m, φ rad).
     pub fn state(&self) -> [f32; 3] {
         self.x

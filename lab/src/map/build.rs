@@ -2,7 +2,29 @@
 //! firmware's map → blob.
 
 use echoloc::geometry::{split_convex_with_holes, HolesError, Point, Ring, MAX_PIECE_VERTICES};
-use echoloc::map::{Capacity, Map, MapError, MapSource, MapView, ObstacleKind};
+use echoloc::map::field::FieldHeader;
+use echoloc::map::{Capacity, FieldParts, Map, MapError, MapSource, MapView, ObstacleKind};
+use echoloc::predict::PredictParams;
+use echoloc::window::WindowParams;
+
+use super::field::{build_field, FieldData, FieldOptions};
+
+/// The field's figures for the summary: nodes, free nodes, headings, bytes,
+/// and the flash a square metre of free space costs.
+pub fn field_summary(h: &FieldHeader, entry_bytes: usize) -> serde_json::Value {
+    let node_m = f64::from(h.node_mm) / 1000.0;
+    serde_json::json!({
+        "node_mm": h.node_mm,
+        "dirs": h.dirs,
+        "nodes": h.nodes,
+        "free_nodes": h.free_nodes,
+        "reach_mm": h.reach_mm,
+        "clearance_mm": h.clearance_mm,
+        "entry_bytes": entry_bytes,
+        "free_area_m2": (f64::from(h.free_nodes) * node_m * node_m * 100.0).round() / 100.0,
+        "bytes_per_m2_stored": if h.node_mm > 0 { (f64::from(h.dirs) / (node_m * node_m)).round() } else { 0.0 },
+    })
+}
 
 /// One obstacle as imported.
 #[derive(Clone, Debug, PartialEq)]
@@ -81,7 +103,14 @@ impl MapSummary {
             cell_mm,
             grid: (cols, rows),
             grid_refs: v.grid_refs(),
-            extra: serde_json::Map::new(),
+            extra: {
+                let mut e = serde_json::Map::new();
+                let f = v.field();
+                if !f.is_empty() {
+                    e.insert("field".into(), field_summary(f.header(), f.nodes() as usize * f.dirs() as usize));
+                }
+                e
+            },
         }
     }
 
@@ -112,22 +141,43 @@ pub type CompileMap = Map<{ COMPILE_PIECES }, { COMPILE_VERTICES }, 262_144, 1_0
 const COMPILE_PIECES: usize = 32_768;
 const COMPILE_VERTICES: usize = 524_288;
 
-/// Builds the map from `shapes` and compiles it (blob version 2). The cell
-/// size starts at `cell_mm` and doubles until the grid fits. Errors name the
-/// shape. Runs on its own thread: the building map (about 5 MiB) is made on
-/// the stack before it is boxed in unoptimised builds.
+/// Builds the map from `shapes` and compiles it (blob version 3) without a
+/// localization field. The cell size starts at `cell_mm` and doubles until
+/// the grid fits. Errors name the shape. Runs on its own thread: the
+/// building map (about 5 MiB) is made on the stack before it is boxed in
+/// unoptimised builds.
 pub fn build_map(shapes: &[Shape], buffer_mm: u32, cell_mm: u32) -> Result<(Vec<u8>, MapSummary), String> {
+    build_map_with(shapes, buffer_mm, cell_mm, None)
+}
+
+/// What a free point is, for the localization field: an occupancy grid's
+/// known-free cells (`None`: any point clear of the obstacles).
+pub type KnownFree<'a> = Option<&'a (dyn Fn(f64, f64) -> bool + Sync)>;
+
+/// [`build_map`] with the localization field made with `field`
+/// (`super::field`), when given.
+pub fn build_map_with(
+    shapes: &[Shape],
+    buffer_mm: u32,
+    cell_mm: u32,
+    field: Option<(&FieldOptions, KnownFree<'_>)>,
+) -> Result<(Vec<u8>, MapSummary), String> {
     std::thread::scope(|s| {
         std::thread::Builder::new()
             .stack_size(64 << 20)
-            .spawn_scoped(s, || build_map_here(shapes, buffer_mm, cell_mm))
+            .spawn_scoped(s, || build_map_here(shapes, buffer_mm, cell_mm, field))
             .map_err(|e| format!("cannot start the map builder: {e}"))?
             .join()
             .unwrap_or_else(|_| Err("the map builder panicked".to_string()))
     })
 }
 
-fn build_map_here(shapes: &[Shape], buffer_mm: u32, cell_mm: u32) -> Result<(Vec<u8>, MapSummary), String> {
+fn build_map_here(
+    shapes: &[Shape],
+    buffer_mm: u32,
+    cell_mm: u32,
+    field: Option<(&FieldOptions, KnownFree<'_>)>,
+) -> Result<(Vec<u8>, MapSummary), String> {
     let mut map: Box<CompileMap> = Box::default();
     for (i, shape) in shapes.iter().enumerate() {
         match shape {
@@ -172,10 +222,21 @@ fn build_map_here(shapes: &[Shape], buffer_mm: u32, cell_mm: u32) -> Result<(Vec
             Err(e) => return Err(map_error(e)),
         }
     }
-    let mut blob = vec![0u8; map.compiled_len()];
-    let n = map.compile(&mut blob).map_err(|e| format!("{e:?}"))?;
+    let data = match field {
+        Some((opts, known)) => {
+            let params = PredictParams::new(WindowParams { tb_mm: buffer_mm, ..WindowParams::POLAROID_6500 });
+            Some(build_field(&*map, &params, opts, known)?)
+        }
+        None => None,
+    };
+    let parts = data.as_ref().map_or(FieldParts::NONE, FieldData::parts);
+    let mut blob = vec![0u8; map.compiled_len_with(&parts)];
+    let n = map.compile_with_field(&parts, &mut blob).map_err(|e| format!("{e:?}"))?;
     blob.truncate(n);
-    let summary = MapSummary::of(&map, shapes.len(), n);
+    let mut summary = MapSummary::of(&map, shapes.len(), n);
+    if let Some(d) = &data {
+        summary.extra.insert("field".into(), field_summary(&d.header, d.entries.len()));
+    }
     Ok((blob, summary))
 }
 

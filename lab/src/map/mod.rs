@@ -10,6 +10,7 @@
 
 pub mod build;
 pub mod contour;
+pub mod field;
 pub mod geojson;
 pub mod render;
 pub mod ros;
@@ -24,7 +25,8 @@ use clap::{Subcommand, ValueEnum};
 use echoloc::geometry::{Point, COORD_MAX};
 use echoloc::map::{MapSource, MapView, StandardMap};
 
-pub use build::{build_map, MapSummary, Shape};
+pub use build::{build_map, build_map_with, MapSummary, Shape};
+pub use field::FieldOptions;
 
 /// Import defaults, shared by `map import` and the other commands that read
 /// a map source.
@@ -55,6 +57,33 @@ pub enum MapCmd {
         /// Also write a PNG preview of the polygon map over the source grid.
         #[arg(long = "preview")]
         preview: Option<PathBuf>,
+        /// Localization field: node spacing, mm (docs/localization.md).
+        #[arg(long = "field-node-mm", default_value_t = FieldOptions::default().node_mm)]
+        field_node_mm: u32,
+        /// Localization field: headings per node.
+        #[arg(long = "field-dirs", default_value_t = FieldOptions::default().dirs)]
+        field_dirs: u32,
+        /// Localization field: how far beyond free space a transducer may stand, mm.
+        #[arg(long = "field-reach-mm", default_value_t = FieldOptions::default().reach_mm)]
+        field_reach_mm: u32,
+        /// Localization field: the robot's centre keeps this far from obstacles, mm.
+        #[arg(long = "field-clearance-mm", default_value_t = FieldOptions::default().clearance_mm)]
+        field_clearance_mm: u32,
+        /// No localization field (a smaller blob that cannot localize globally).
+        #[arg(long = "no-field")]
+        no_field: bool,
+    },
+    /// Compare a compiled map's localization field with the exact prediction
+    /// at random poses of the Pioneer ring over its free space.
+    FieldCheck {
+        /// The blob.
+        map: PathBuf,
+        /// Robot poses (16 transducers each).
+        #[arg(long, default_value_t = 2000)]
+        robots: usize,
+        /// Seed of the draws.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
     },
     /// Print the summary of a map blob after loading it exactly as the firmware does.
     Info {
@@ -155,17 +184,28 @@ impl From<ImportError> for LabError {
     }
 }
 
-/// How a map source is read.
+/// How a map source is read and compiled.
 #[derive(Clone, Copy, Debug)]
 pub struct ImportOptions {
     pub simplify_mm: u32,
     pub unknown: Unknown,
+    /// The localization field (`None`: a blob without one, which cannot
+    /// localize globally).
+    pub field: Option<FieldOptions>,
 }
 
 impl Default for ImportOptions {
     fn default() -> Self {
-        Self { simplify_mm: DEFAULT_SIMPLIFY_MM, unknown: Unknown::Free }
+        Self { simplify_mm: DEFAULT_SIMPLIFY_MM, unknown: Unknown::Free, field: Some(FieldOptions::default()) }
     }
+}
+
+/// Compiles the shapes of `src` with `opt`'s field (free space from the
+/// occupancy grid's known-free cells, when there is one).
+pub fn compile_source(src: &Source, buffer_mm: u32, cell_mm: u32, opt: &ImportOptions) -> Result<(Vec<u8>, MapSummary), String> {
+    let known = src.grid.as_ref().map(|g| move |x: f64, y: f64| g.known_free_at(x, y));
+    let known_ref = known.as_ref().map(|f| f as &(dyn Fn(f64, f64) -> bool + Sync));
+    build_map_with(&src.shapes, buffer_mm, cell_mm, opt.field.as_ref().map(|f| (f, known_ref)))
 }
 
 /// What was read: the shapes, the grid they came from (for ROS maps), and
@@ -205,8 +245,8 @@ pub fn import(
     let work = move || -> Result<(Vec<u8>, MapSummary, Source), ImportError> {
         let src = read_source(&input, &opt)?;
         let (blob, mut summary) =
-            build_map(&src.shapes, buffer_mm, cell_mm).map_err(|e| ImportError::Content { path: input, problem: e })?;
-        summary.extra = src.extra.clone();
+            compile_source(&src, buffer_mm, cell_mm, &opt).map_err(|e| ImportError::Content { path: input, problem: e })?;
+        summary.extra.extend(src.extra.clone());
         Ok((blob, summary, src))
     };
     std::thread::Builder::new()
@@ -219,8 +259,29 @@ pub fn import(
 
 pub fn run(cmd: MapCmd) -> Result<String, LabError> {
     match cmd {
-        MapCmd::Import { input, out, buffer_mm, cell_mm, simplify_mm, unknown, preview } => {
-            let (blob, summary, src) = import(&input, buffer_mm, cell_mm, &ImportOptions { simplify_mm, unknown })?;
+        MapCmd::Import {
+            input,
+            out,
+            buffer_mm,
+            cell_mm,
+            simplify_mm,
+            unknown,
+            preview,
+            field_node_mm,
+            field_dirs,
+            field_reach_mm,
+            field_clearance_mm,
+            no_field,
+        } => {
+            let field = FieldOptions {
+                node_mm: field_node_mm,
+                dirs: field_dirs,
+                reach_mm: field_reach_mm,
+                clearance_mm: field_clearance_mm,
+            };
+            field.validate().map_err(|e| LabError(format!("--{e}")))?;
+            let opt = ImportOptions { simplify_mm, unknown, field: (!no_field).then_some(field) };
+            let (blob, summary, src) = import(&input, buffer_mm, cell_mm, &opt)?;
             // Everything is computed before anything is written.
             let png = match &preview {
                 Some(_) => {
@@ -239,6 +300,12 @@ pub fn run(cmd: MapCmd) -> Result<String, LabError> {
                 }
             }
             Ok(summary.to_json())
+        }
+        MapCmd::FieldCheck { map, robots, seed } => {
+            let a = read_compiled(&map)?;
+            let v = view_of(&a, &map)?;
+            let c = field::check_field(&v, robots, seed).map_err(|e| LabError(format!("{}: {e}", map.display())))?;
+            Ok(c.json().to_string())
         }
         MapCmd::Info { map } => {
             let bytes = std::fs::read(&map).map_err(|e| ImportError::Io { path: map.clone(), source: e })?;

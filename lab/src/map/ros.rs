@@ -66,6 +66,19 @@ impl Grid {
     pub fn at(&self, c: usize, r: usize) -> Cell {
         self.cells[r * self.width + c]
     }
+
+    /// Whether the cell holding the map point (`x_mm`, `y_mm`) is known to
+    /// be free (false outside the image).
+    pub fn known_free_at(&self, x_mm: f64, y_mm: f64) -> bool {
+        let res = self.yaml.resolution * 1000.0;
+        let u = ((x_mm - self.yaml.origin[0] * 1000.0) / res).floor();
+        let v = ((y_mm - self.yaml.origin[1] * 1000.0) / res).floor();
+        if !(u >= 0.0 && v >= 0.0 && u < self.width as f64 && v < self.height as f64) {
+            return false;
+        }
+        // Image rows run down from the top; v counts up from the bottom.
+        self.at(u as usize, self.height - 1 - v as usize) == Cell::Free
+    }
 }
 
 fn field(path: &Path, field: &str, problem: impl Into<String>) -> ImportError {

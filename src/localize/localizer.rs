@@ -1,0 +1,521 @@
+//! One localizer, three modes (DESIGN §4.8): *searching* (the particles
+//! alone, over all free space or around a given pose), *tracking* (the EKF,
+//! the particles asleep) and *lost* (the EKF's lost monitor fired: the
+//! particles wake around its estimate, widened, with a share over all free
+//! space, and search from the next cycle).
+//!
+//! The hand-off: when one cluster holds `handoff_weight` of the weight
+//! within `handoff_radius_m` and `handoff_angle_rad` of its mean, on
+//! `handoff_cycles` cycles in a row, the EKF starts at the cluster's mean
+//! with its covariance (never tighter than `handoff_sigma_floor`).
+//!
+//! The localizer sees readings one at a time, as the controller does; the
+//! particles see them a cycle at a time, each at the transducer's pose at
+//! its firing relative to the cycle's start (the odometry between carries
+//! it), so a ring that fires over half a second while the robot moves is
+//! scored where each reading was taken.
+
+use heapless::Vec;
+
+use super::expect::FieldLookup;
+use super::particles::{Cluster, McConfig, ParticleError, ParticleSet, Sensed};
+use crate::credence::Credence;
+use crate::f32math::{sin_cos, sqrt};
+use crate::map::field::FieldView;
+use crate::map::MapSource;
+use crate::predict::{Mount, PredictParams};
+use crate::referencing::{
+    wrap, Ekf, EkfConfig, EkfError, Motion, Reading, ReadingReport, Referencer, ReferencerError, Verdict, VerdictConfig,
+};
+
+/// Readings a cycle holds for the particles (a ring of up to 32).
+pub const MAX_SENSED: usize = 32;
+
+/// What the localizer is doing.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Mode {
+    /// The particles search; the estimate is their heaviest cluster's.
+    Searching,
+    /// The EKF tracks; the particles sleep.
+    Tracking,
+    /// The EKF says it is lost (with no particles to search, it stays so
+    /// until its own recovery finds the pose).
+    Lost,
+}
+
+impl Mode {
+    /// `searching`, `tracking` or `lost`.
+    pub const fn name(self) -> &'static str {
+        match self {
+            Mode::Searching => "searching",
+            Mode::Tracking => "tracking",
+            Mode::Lost => "lost",
+        }
+    }
+}
+
+/// Where the localizer starts.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Start {
+    /// Anywhere: particles over all free space.
+    Unknown,
+    /// Near `pose` (x m, y m, φ rad), with standard deviations `sigma`:
+    /// particles drawn around it.
+    Around {
+        /// The pose.
+        pose: [f32; 3],
+        /// Its standard deviations (m, m, rad).
+        sigma: [f32; 3],
+    },
+    /// At `pose` with standard deviations `sigma`: the EKF tracks at once.
+    Known {
+        /// The pose.
+        pose: [f32; 3],
+        /// Its standard deviations (m, m, rad).
+        sigma: [f32; 3],
+    },
+}
+
+/// Why the localizer refused.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum LocalizeError {
+    /// A search was asked of a localizer with no particles (`N = 0`).
+    NoCapacity,
+    /// The map's field has no free space to draw particles from (a map
+    /// compiled without a field, or one with no room for the robot).
+    NoFreeSpace,
+    /// The start pose is not in the map's free space.
+    OutsideMap,
+    /// A non-finite pose, σ or odometry.
+    NotFinite,
+    /// A transducer stands farther from the robot's centre than the
+    /// field reaches (`reach_mm`): the map must be compiled with more reach.
+    RingBeyondField {
+        /// The transducer.
+        transducer: u8,
+    },
+    /// The EKF refused.
+    Ekf(EkfError),
+    /// Prediction or the EKF refused a reading.
+    Referencer(ReferencerError),
+}
+
+impl From<EkfError> for LocalizeError {
+    fn from(e: EkfError) -> Self {
+        Self::Ekf(e)
+    }
+}
+
+impl From<ReferencerError> for LocalizeError {
+    fn from(e: ReferencerError) -> Self {
+        Self::Referencer(e)
+    }
+}
+
+impl From<ParticleError> for LocalizeError {
+    fn from(e: ParticleError) -> Self {
+        match e {
+            ParticleError::NoCapacity => Self::NoCapacity,
+            ParticleError::NoFreeSpace => Self::NoFreeSpace,
+            ParticleError::NotFinite => Self::NotFinite,
+        }
+    }
+}
+
+impl core::fmt::Display for LocalizeError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            Self::NoCapacity => f.write_str("no particles to search with (capacity 0)"),
+            Self::NoFreeSpace => f.write_str("the map's field has no free space (compile the map with a field)"),
+            Self::OutsideMap => f.write_str("the start pose is not in the map's free space"),
+            Self::NotFinite => f.write_str("a non-finite pose, standard deviation or odometry"),
+            Self::RingBeyondField { transducer } => {
+                write!(f, "transducer {transducer} stands beyond the field's reach (compile the map with more reach)")
+            }
+            Self::Ekf(e) => write!(f, "EKF: {e:?}"),
+            Self::Referencer(e) => write!(f, "{e:?}"),
+        }
+    }
+}
+
+impl core::error::Error for LocalizeError {}
+
+/// The localizer's settings.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct LocalizerConfig {
+    /// The particles'.
+    pub mcl: McConfig,
+    /// Hand-off: the cluster's share of the weight ...
+    pub handoff_weight: f32,
+    /// ... within this distance of its mean, m ...
+    pub handoff_radius_m: f32,
+    /// ... and this angle, rad ...
+    pub handoff_angle_rad: f32,
+    /// ... on this many cycles in a row ...
+    pub handoff_cycles: u8,
+    /// ... each with at least this many readings.
+    pub handoff_min_readings: u8,
+    /// The EKF's standard deviations at a hand-off are at least these.
+    pub handoff_sigma_floor: [f32; 3],
+    /// When the EKF is lost, particles are drawn around its estimate with
+    /// at least these standard deviations ...
+    pub wake_sigma: [f32; 3],
+    /// ... or this many times its own, if larger ...
+    pub wake_sigma_scale: f32,
+    /// ... and this share of them over all free space.
+    pub wake_global: f32,
+}
+
+impl LocalizerConfig {
+    /// The hand-off (95 % within 0.2 m and 5°, two cycles in a
+    /// row), and a lost EKF's particles within ±0.5 m and ±15° of it (or
+    /// three of its σ) with 30 % over all free space.
+    pub const DEFAULT: Self = Self {
+        mcl: McConfig::DEFAULT,
+        handoff_weight: 0.95,
+        handoff_radius_m: 0.2,
+        handoff_angle_rad: 5.0 * core::f32::consts::PI / 180.0,
+        handoff_cycles: 2,
+        handoff_min_readings: 4,
+        handoff_sigma_floor: [0.03, 0.03, 1.0 * core::f32::consts::PI / 180.0],
+        wake_sigma: [0.5, 0.5, 15.0 * core::f32::consts::PI / 180.0],
+        wake_sigma_scale: 3.0,
+        wake_global: 0.3,
+    };
+}
+
+/// What a ring cycle's end did.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct CycleReport {
+    /// The mode of the cycle that ended (`Lost` on the cycle the EKF was
+    /// found lost, though the particles search from the next).
+    pub mode: Mode,
+    /// The particles weighed (0 unless searching).
+    pub particles: u16,
+    /// The heaviest cluster's share of the weight (0 unless searching).
+    pub cluster_weight: f32,
+    /// The share of the set injected at random.
+    pub injected: f32,
+    /// The EKF took over from the particles.
+    pub handoff: bool,
+    /// The particles woke (the EKF was lost).
+    pub woke: bool,
+    /// Readings of the cycle beyond [`MAX_SENSED`], not seen by the particles.
+    pub dropped: u16,
+}
+
+/// Counts over the run.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct LocalizerCounts {
+    /// Cycles ended searching.
+    pub searching: u32,
+    /// Cycles ended tracking.
+    pub tracking: u32,
+    /// Cycles ended lost.
+    pub lost: u32,
+    /// Hand-offs to the EKF.
+    pub handoffs: u32,
+    /// Times the particles woke.
+    pub wakes: u32,
+}
+
+/// The localizer: the EKF (with its verdicts) and `N` particles. `N = 0`
+/// is the EKF alone.
+#[derive(Clone, Debug)]
+pub struct Localizer<const N: usize> {
+    cfg: LocalizerConfig,
+    referencer: Referencer,
+    particles: ParticleSet<N>,
+    mode: Mode,
+    sensed: Vec<Sensed, MAX_SENSED>,
+    dropped: u16,
+    /// The odometry since the cycle's start, in its frame (x m, y m, φ rad).
+    offset: [f32; 3],
+    /// The particles' estimate at the cycle's start and its covariance.
+    cluster: Option<Cluster>,
+    converged: u8,
+    counts: LocalizerCounts,
+}
+
+/// `a ⊕ b`.
+fn compose(a: &[f32; 3], b: &[f32; 3]) -> [f32; 3] {
+    let (s, c) = sin_cos(a[2]);
+    [a[0] + c * b[0] - s * b[1], a[1] + s * b[0] + c * b[1], wrap(a[2] + b[2])]
+}
+
+impl<const N: usize> Localizer<N> {
+    /// A localizer starting at `start` on the map whose field is `field`,
+    /// the EKF built from `ekf` (its settings) and judging with `verdicts`;
+    /// `seed` fixes every random draw.
+    pub fn new(
+        cfg: LocalizerConfig,
+        ekf: EkfConfig,
+        verdicts: VerdictConfig,
+        start: Start,
+        field: &FieldView<'_>,
+        seed: u64,
+    ) -> Result<Self, LocalizeError> {
+        let ekf = Ekf::new([0.0; 3], [1.0; 3], ekf)?;
+        let mut l = Self {
+            cfg,
+            referencer: Referencer::new(ekf, verdicts),
+            particles: ParticleSet::new(seed),
+            mode: Mode::Tracking,
+            sensed: Vec::new(),
+            dropped: 0,
+            offset: [0.0; 3],
+            cluster: None,
+            converged: 0,
+            counts: LocalizerCounts::default(),
+        };
+        l.start(start, field)?;
+        Ok(l)
+    }
+
+    /// Starts again from `start` (a pose the robot's computer sent, or none):
+    /// the EKF's settings and its odometry calibration are kept.
+    pub fn start(&mut self, start: Start, field: &FieldView<'_>) -> Result<(), LocalizeError> {
+        let lookup = FieldLookup::new(field);
+        match start {
+            Start::Known { pose, sigma } => {
+                self.referencer.ekf.relocate_diagonal(pose, sigma)?;
+                self.mode = Mode::Tracking;
+            }
+            Start::Unknown => {
+                if N == 0 {
+                    return Err(LocalizeError::NoCapacity);
+                }
+                self.particles.seed_global(&lookup, N)?;
+                self.mode = Mode::Searching;
+            }
+            Start::Around { pose, sigma } => {
+                if N == 0 {
+                    return Err(LocalizeError::NoCapacity);
+                }
+                if !pose.iter().chain(sigma.iter()).all(|v| v.is_finite()) || sigma.iter().any(|&s| s < 0.0) {
+                    return Err(LocalizeError::NotFinite);
+                }
+                if lookup.field().free_nodes() == 0 {
+                    return Err(LocalizeError::NoFreeSpace);
+                }
+                if !lookup.is_free(pose[0] * 1e3, pose[1] * 1e3) {
+                    return Err(LocalizeError::OutsideMap);
+                }
+                self.particles.seed_around(&lookup, N, pose, sigma, 0.0)?;
+                self.mode = Mode::Searching;
+            }
+        }
+        self.sensed.clear();
+        self.dropped = 0;
+        self.offset = [0.0; 3];
+        self.converged = 0;
+        self.cluster = None;
+        if self.mode == Mode::Searching {
+            self.cluster = self.particles.cluster(self.cfg.handoff_radius_m, self.cfg.handoff_angle_rad);
+        }
+        Ok(())
+    }
+
+    /// Checks that every transducer of `mounts` stands within the field's
+    /// reach (call once with the ring).
+    pub fn check_ring(&self, mounts: &[Mount], field: &FieldView<'_>) -> Result<(), LocalizeError> {
+        if field.is_empty() {
+            return Ok(());
+        }
+        let reach = field.header().reach_mm as f32;
+        for (i, m) in mounts.iter().enumerate() {
+            let (x, y) = (m.x_mm as f32, m.y_mm as f32);
+            if sqrt(x * x + y * y) > reach {
+                return Err(LocalizeError::RingBeyondField { transducer: i as u8 });
+            }
+        }
+        Ok(())
+    }
+
+    /// Odometry since the last call (in the robot's frame at the last call).
+    pub fn odometry(&mut self, u: &Motion) -> Result<(), LocalizeError> {
+        if !u.is_finite() {
+            return Err(LocalizeError::NotFinite);
+        }
+        if self.mode != Mode::Searching {
+            self.referencer.odometry(u)?;
+        }
+        self.offset = compose(&self.offset, &[u.dx, u.dy, u.dphi]);
+        Ok(())
+    }
+
+    /// One transducer's reading: kept for the particles, and, unless
+    /// searching, predicted at the EKF's estimate, judged and fed to it.
+    /// While searching there is no pose to judge from: the report has no
+    /// prediction and the verdict is inconclusive.
+    pub fn reading<M: MapSource + ?Sized, K: Credence + ?Sized>(
+        &mut self,
+        map: &M,
+        mount: &Mount,
+        params: &PredictParams,
+        credence: &K,
+        reading: Reading,
+    ) -> Result<ReadingReport, LocalizeError> {
+        let m = [mount.x_mm as f32 * 1e-3, mount.y_mm as f32 * 1e-3, (mount.heading_mdeg as f32 * 1e-3).to_radians()];
+        let pose = compose(&self.offset, &m);
+        if self.sensed.push(Sensed { pose, reading }).is_err() {
+            self.dropped = self.dropped.saturating_add(1);
+        }
+        if self.mode == Mode::Searching {
+            return Ok(ReadingReport { prediction: None, verdict: Verdict::Inconclusive, target: None, update: None });
+        }
+        Ok(self.referencer.reading(map, mount, params, credence, reading)?)
+    }
+
+    /// Ends a ring cycle: the EKF's lost monitor, or the particles' update,
+    /// resampling and motion; the hand-off and the wake-up.
+    pub fn end_cycle(&mut self, field: &FieldView<'_>) -> Result<CycleReport, LocalizeError> {
+        let lookup = FieldLookup::new(field);
+        let offset = Motion { dx: self.offset[0], dy: self.offset[1], dphi: self.offset[2] };
+        let mut report = CycleReport {
+            mode: self.mode,
+            particles: 0,
+            cluster_weight: 0.0,
+            injected: 0.0,
+            handoff: false,
+            woke: false,
+            dropped: self.dropped,
+        };
+        match self.mode {
+            Mode::Searching => {
+                let cfg = self.cfg;
+                let w = self.particles.weigh(&self.sensed, &lookup, &cfg.mcl);
+                report.particles = self.particles.len() as u16;
+                let cluster = self.particles.cluster(cfg.handoff_radius_m, cfg.handoff_angle_rad);
+                report.cluster_weight = cluster.map_or(0.0, |c| c.weight);
+                let converged = cluster.is_some_and(|c| c.weight >= cfg.handoff_weight)
+                    && w.readings >= u16::from(cfg.handoff_min_readings);
+                self.converged = if converged { self.converged.saturating_add(1) } else { 0 };
+                match cluster {
+                    Some(c) if self.converged >= cfg.handoff_cycles => {
+                        self.handoff(&c, &offset)?;
+                        report.handoff = true;
+                    }
+                    _ => {
+                        self.particles.resample(&self.sensed, &lookup, &cfg.mcl);
+                        report.injected = self.particles.injected();
+                        self.particles.motion(&offset, &cfg.mcl.motion)?;
+                        // The estimate to report until the next cycle: the
+                        // cluster found before resampling, moved by the cycle's
+                        // odometry.
+                        self.cluster = cluster.map(|mut c| {
+                            c.mean = compose(&c.mean, &self.offset);
+                            c
+                        });
+                    }
+                }
+            }
+            Mode::Tracking | Mode::Lost => {
+                self.referencer.end_cycle();
+                let lost = self.referencer.ekf.is_lost();
+                if lost && N > 0 {
+                    report.mode = Mode::Lost;
+                    self.wake(&lookup)?;
+                    report.woke = true;
+                } else {
+                    self.mode = if lost { Mode::Lost } else { Mode::Tracking };
+                    report.mode = self.mode;
+                }
+            }
+        }
+        match report.mode {
+            Mode::Searching => self.counts.searching += 1,
+            Mode::Tracking => self.counts.tracking += 1,
+            Mode::Lost => self.counts.lost += 1,
+        }
+        self.sensed.clear();
+        self.dropped = 0;
+        self.offset = [0.0; 3];
+        Ok(report)
+    }
+
+    /// The EKF starts at the cluster (at the cycle's start), then takes the
+    /// cycle's odometry.
+    fn handoff(&mut self, c: &Cluster, offset: &Motion) -> Result<(), LocalizeError> {
+        let f = &self.cfg.handoff_sigma_floor;
+        let mut p = c.covariance;
+        for (i, row) in p.iter_mut().enumerate() {
+            row[i] = row[i].max(f[i] * f[i]);
+        }
+        self.referencer.ekf.relocate(c.mean, p)?;
+        self.referencer.ekf.predict(offset)?;
+        self.mode = Mode::Tracking;
+        self.converged = 0;
+        self.cluster = None;
+        self.counts.handoffs += 1;
+        Ok(())
+    }
+
+    /// The EKF is lost: particles around its estimate, widened, and a share
+    /// over all free space.
+    fn wake(&mut self, lookup: &FieldLookup<'_, '_>) -> Result<(), LocalizeError> {
+        let x = self.referencer.ekf.state();
+        let p = self.referencer.ekf.covariance();
+        let c = &self.cfg;
+        let sigma: [f32; 3] = core::array::from_fn(|i| {
+            let own = sqrt(p[i][i].max(0.0)) * c.wake_sigma_scale;
+            own.max(c.wake_sigma[i])
+        });
+        let global = if lookup.field().free_nodes() == 0 { 0.0 } else { c.wake_global };
+        self.particles.seed_around(lookup, N, x, sigma, global)?;
+        self.mode = Mode::Searching;
+        self.converged = 0;
+        self.cluster = self.particles.cluster(c.handoff_radius_m, c.handoff_angle_rad);
+        self.counts.wakes += 1;
+        Ok(())
+    }
+
+    /// What the localizer is doing now.
+    pub fn mode(&self) -> Mode {
+        self.mode
+    }
+
+    /// The estimate now (x m, y m, φ rad): the EKF's, or while searching
+    /// the heaviest cluster's moved by the odometry since.
+    pub fn state(&self) -> [f32; 3] {
+        match (self.mode, &self.cluster) {
+            (Mode::Searching, Some(c)) => compose(&c.mean, &self.offset),
+            _ => self.referencer.ekf.state(),
+        }
+    }
+
+    /// Its covariance: the EKF's, or while searching the whole set's spread
+    /// about the cluster's mean (how unsure the particles are).
+    pub fn covariance(&self) -> [[f32; 3]; 3] {
+        match (self.mode, &self.cluster) {
+            (Mode::Searching, Some(c)) => c.spread,
+            _ => self.referencer.ekf.covariance(),
+        }
+    }
+
+    /// The EKF and its verdicts.
+    pub fn referencer(&self) -> &Referencer {
+        &self.referencer
+    }
+
+    /// The particles.
+    pub fn particles(&self) -> &ParticleSet<N> {
+        &self.particles
+    }
+
+    /// The settings.
+    pub fn config(&self) -> &LocalizerConfig {
+        &self.cfg
+    }
+
+    /// Counts over the run.
+    pub fn counts(&self) -> LocalizerCounts {
+        self.counts
+    }
+}

@@ -1,0 +1,40 @@
+//! Finding itself (DESIGN §4.8): Monte Carlo localization in fixed memory,
+//! for a robot that starts anywhere, was carried, or followed clutter away,
+//! and the localizer that hands off between the particles and the EKF.
+//!
+//! | module | what it does |
+//! |---|---|
+//! | [`localizer`] | [`Localizer`]: *searching*, *tracking*, *lost*; the hand-off to the EKF and the particles' wake-up |
+//! | [`particles`] | [`ParticleSet`]: `N` particles, weighing, low-variance resampling in place, KLD sampling, augmented MCL, the heaviest cluster |
+//! | [`beam`] | [`BeamModel`]: the sonar's measurement model (hit, short, miss, random) |
+//! | [`expect`] | [`FieldLookup`]: what a transducer anywhere should hear, from the compiled map's field |
+//! | [`rng`] | [`Rng`]: xoshiro128++, uniform and approximately normal draws |
+//!
+//! Everything is `f32`, allocation-free, and held by the caller: a
+//! `Localizer<1024>` is about 22 KiB (`docs/localization.md`).
+//!
+//! ```
+//! use echoloc::localize::{Localizer, LocalizerConfig, Mode, Start};
+//! use echoloc::map::FieldView;
+//! use echoloc::referencing::{EkfConfig, VerdictConfig};
+//!
+//! // Without a field there is no free space to search: a known start only.
+//! let field = FieldView::EMPTY;
+//! let start = Start::Known { pose: [1.0, 2.0, 0.0], sigma: [0.05, 0.05, 0.02] };
+//! let loc: Localizer<64> =
+//!     Localizer::new(LocalizerConfig::DEFAULT, EkfConfig::DEFAULT, VerdictConfig::POLAROID, start, &field, 1).unwrap();
+//! assert_eq!(loc.mode(), Mode::Tracking);
+//! assert!(Localizer::<64>::new(LocalizerConfig::DEFAULT, EkfConfig::DEFAULT, VerdictConfig::POLAROID, Start::Unknown, &field, 1).is_err());
+//! ```
+
+pub mod beam;
+pub mod expect;
+pub mod localizer;
+pub mod particles;
+pub mod rng;
+
+pub use beam::BeamModel;
+pub use expect::FieldLookup;
+pub use localizer::{CycleReport, LocalizeError, Localizer, LocalizerConfig, LocalizerCounts, Mode, Start, MAX_SENSED};
+pub use particles::{kld_bound, Cluster, McConfig, MotionNoise, ParticleError, ParticleSet, Sensed, Weighed};
+pub use rng::Rng;
