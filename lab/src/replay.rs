@@ -123,10 +123,13 @@ pub fn replay_cmd(a: &ReplayArgs) -> Result<String, LabError> {
     let given = a.initial_pose.as_deref().map(|s| parse_pose(s, "--initial-pose")).transpose()?;
     let mounts = ring_mounts(&a.ring)?;
     let log = crate::log::read_file(&a.log, mounts.len())?;
-    let (map, _) = load_map_and_blob(&a.map, a.buffer_mm)?;
+    let (map, blob) = load_map_and_blob(&a.map, a.buffer_mm)?;
     let steps = steps_of_log(&log);
-    let trace = filters::run(&map, &mounts, &start(&log, given), &steps, &mut |_| {})
-        .map_err(|e| LabError(format!("{}: {e}", a.log.display())))?;
+    let trace = filters::with_field(&blob, |field| {
+        filters::run(&map, field, &mounts, &start(&log, given), &steps, &mut |_| {})
+    })
+    .and_then(|r| r)
+    .map_err(|e| LabError(format!("{}: {e}", a.log.display())))?;
     let mut r = report(&trace, None);
     if let Some(o) = r.as_object_mut() {
         o.insert(

@@ -94,8 +94,11 @@ fn replay(a: &ReplayArgs) -> Result<String, LabError> {
     let mounts: Vec<Mount> = (0..s.transducers()).filter_map(|i| s.mount(i)).collect();
     let records: Vec<Record> = s.records().collect();
     let steps = filters::steps_of_records(s.header(), &records).map_err(LabError)?;
-    let trace = filters::run(&map, &mounts, &start_of(s.header()), &steps, &mut |_| {})
-        .map_err(|e| LabError(format!("{}: {e}", a.scenario.display())))?;
+    let trace = filters::with_field(&blob, |field| {
+        filters::run(&map, field, &mounts, &start_of(s.header()), &steps, &mut |_| {})
+    })
+    .and_then(|r| r)
+    .map_err(|e| LabError(format!("{}: {e}", a.scenario.display())))?;
     let r = report(&trace, None);
     Ok(if a.json { r.to_string() } else { serde_json::to_string_pretty(&r).unwrap_or_default() })
 }

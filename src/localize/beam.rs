@@ -75,6 +75,14 @@ impl BeamModel {
     /// nothing.
     #[inline]
     pub fn likelihood(&self, reading: Reading, expected: Option<Expected>) -> f32 {
+        self.likelihood_with(reading, expected, 0.0)
+    }
+
+    /// [`BeamModel::likelihood`] with a hit's variance grown by
+    /// `extra_var_mm2` (mm²): the pose's own uncertainty, so that a spread
+    /// particle set sees wide basins and a tight one a sharp model.
+    #[inline]
+    pub fn likelihood_with(&self, reading: Reading, expected: Option<Expected>, extra_var_mm2: f32) -> f32 {
         let z = match reading {
             Reading::Invalid => return 1.0,
             Reading::Echo { range_mm } if (range_mm as f32) <= self.r_max_mm => Some(range_mm as f32),
@@ -99,7 +107,8 @@ impl BeamModel {
                 } else {
                     (&self.unsure_mix, self.p_miss_unsure, self.unsure_sigma_scale)
                 };
-                let sigma_m = (self.sigma_mm + self.sigma_rel * r) * scale * 1e-3;
+                let own = (self.sigma_mm + self.sigma_rel * r) * scale;
+                let sigma_m = crate::f32math::sqrt(own * own + extra_var_mm2) * 1e-3;
                 let d = (z - r) * 1e-3 / sigma_m;
                 let hit = crate::f32math::exp_fast(-0.5 * d * d) * (0.398_942_3 / sigma_m);
                 let short = if z < r && r > self.r_min_mm { 1e3 / (r - self.r_min_mm) } else { 0.0 };

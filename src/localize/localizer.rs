@@ -18,7 +18,8 @@
 use heapless::Vec;
 
 use super::expect::FieldLookup;
-use super::particles::{Cluster, McConfig, ParticleError, ParticleSet, Sensed};
+use super::particles::{Cluster, McConfig, ParticleError, ParticleSet, Sensed, Weighed};
+use super::scan::{Candidate, ScanConfig, Sweep, SCAN_KEEP};
 use crate::credence::Credence;
 use crate::f32math::{sin_cos, sqrt};
 use crate::map::field::FieldView;
@@ -149,6 +150,8 @@ impl core::error::Error for LocalizeError {}
 pub struct LocalizerConfig {
     /// The particles'.
     pub mcl: McConfig,
+    /// The search's proposals ([`super::scan`]).
+    pub scan: ScanConfig,
     /// Hand-off: the cluster's share of the weight ...
     pub handoff_weight: f32,
     /// ... within this distance of its mean, m ...
@@ -171,15 +174,16 @@ pub struct LocalizerConfig {
 }
 
 impl LocalizerConfig {
-    /// The hand-off (95 % within 0.2 m and 5°, two cycles in a
+    /// The hand-off (95 % within 0.2 m and 5°, five cycles in a
     /// row), and a lost EKF's particles within ±0.5 m and ±15° of it (or
     /// three of its σ) with 30 % over all free space.
     pub const DEFAULT: Self = Self {
         mcl: McConfig::DEFAULT,
+        scan: ScanConfig::DEFAULT,
         handoff_weight: 0.95,
         handoff_radius_m: 0.2,
         handoff_angle_rad: 5.0 * core::f32::consts::PI / 180.0,
-        handoff_cycles: 2,
+        handoff_cycles: 5,
         handoff_min_readings: 4,
         handoff_sigma_floor: [0.03, 0.03, 1.0 * core::f32::consts::PI / 180.0],
         wake_sigma: [0.5, 0.5, 15.0 * core::f32::consts::PI / 180.0],
@@ -207,6 +211,8 @@ pub struct CycleReport {
     pub woke: bool,
     /// Readings of the cycle beyond [`MAX_SENSED`], not seen by the particles.
     pub dropped: u16,
+    /// What weighing the particles did (while searching).
+    pub weighed: Weighed,
 }
 
 /// Counts over the run.
@@ -240,6 +246,7 @@ pub struct Localizer<const N: usize> {
     /// The particles' estimate at the cycle's start and its covariance.
     cluster: Option<Cluster>,
     converged: u8,
+    sweep: Sweep,
     counts: LocalizerCounts,
 }
 
@@ -272,6 +279,7 @@ impl<const N: usize> Localizer<N> {
             offset: [0.0; 3],
             cluster: None,
             converged: 0,
+            sweep: Sweep::default(),
             counts: LocalizerCounts::default(),
         };
         l.start(start, field)?;
@@ -386,24 +394,57 @@ impl<const N: usize> Localizer<N> {
             handoff: false,
             woke: false,
             dropped: self.dropped,
+            weighed: Weighed::default(),
         };
         match self.mode {
             Mode::Searching => {
                 let cfg = self.cfg;
+                // The model widens with the last cluster's position spread.
+                let spread = self.cluster.map_or(f32::INFINITY, |c| {
+                    let p = c.covariance;
+                    if c.weight >= 0.5 {
+                        sqrt((p[0][0] + p[1][1]).max(0.0))
+                    } else {
+                        f32::INFINITY
+                    }
+                });
+                self.particles.set_spread(spread);
                 let w = self.particles.weigh(&self.sensed, &lookup, &cfg.mcl);
+                report.weighed = w;
                 report.particles = self.particles.len() as u16;
                 let cluster = self.particles.cluster(cfg.handoff_radius_m, cfg.handoff_angle_rad);
                 report.cluster_weight = cluster.map_or(0.0, |c| c.weight);
-                let converged = cluster.is_some_and(|c| c.weight >= cfg.handoff_weight)
-                    && w.readings >= u16::from(cfg.handoff_min_readings);
-                self.converged = if converged { self.converged.saturating_add(1) } else { 0 };
+                // The cluster's standing: a cycle at the hand-off weight counts
+                // one up, a cycle where the same cluster (its mean within the
+                // hand-off radius of the last, carried by the odometry) holds
+                // at least half counts one down, anything else starts again.
+                let same = match (&cluster, &self.cluster) {
+                    (Some(c), Some(prev)) => {
+                        // The last cluster was carried to this cycle's start.
+                        let p = prev.mean;
+                        let (dx, dy) = (c.mean[0] - p[0], c.mean[1] - p[1]);
+                        dx * dx + dy * dy <= cfg.handoff_radius_m * cfg.handoff_radius_m
+                            && wrap(c.mean[2] - p[2]).abs() <= cfg.handoff_angle_rad
+                    }
+                    _ => false,
+                };
+                let weight = cluster.map_or(0.0, |c| c.weight);
+                let enough = w.readings >= u16::from(cfg.handoff_min_readings);
+                self.converged = match (weight >= cfg.handoff_weight && enough, same, weight >= 0.5) {
+                    (true, true, _) => self.converged.saturating_add(1),
+                    (true, false, _) => 1,
+                    (false, true, true) => self.converged.saturating_sub(1),
+                    _ => 0,
+                };
                 match cluster {
                     Some(c) if self.converged >= cfg.handoff_cycles => {
                         self.handoff(&c, &offset)?;
                         report.handoff = true;
                     }
                     _ => {
-                        self.particles.resample(&self.sensed, &lookup, &cfg.mcl);
+                        let mut candidates: heapless::Vec<Candidate, SCAN_KEEP> = heapless::Vec::new();
+                        self.sweep.scan(&self.sensed, &lookup, &cfg.mcl.beam, &cfg.scan, &mut candidates);
+                        self.particles.resample(&self.sensed, &lookup, &cfg.mcl, 1.0 - weight, &candidates);
                         report.injected = self.particles.injected();
                         self.particles.motion(&offset, &cfg.mcl.motion)?;
                         // The estimate to report until the next cycle: the

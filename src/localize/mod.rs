@@ -8,6 +8,7 @@
 //! | [`particles`] | [`ParticleSet`]: `N` particles, weighing, low-variance resampling in place, KLD sampling, augmented MCL, the heaviest cluster |
 //! | [`beam`] | [`BeamModel`]: the sonar's measurement model (hit, short, miss, random) |
 //! | [`expect`] | [`FieldLookup`]: what a transducer anywhere should hear, from the compiled map's field |
+//! | [`scan`] | [`Sweep`]: the search's proposals, every heading of a sweep of free nodes scored cheaply against the cycle's readings |
 //! | [`rng`] | [`Rng`]: xoshiro128++, uniform and approximately normal draws |
 //!
 //! Everything is `f32`, allocation-free, and held by the caller: a
@@ -32,9 +33,11 @@ pub mod expect;
 pub mod localizer;
 pub mod particles;
 pub mod rng;
+pub mod scan;
 
 pub use beam::BeamModel;
 pub use expect::FieldLookup;
 pub use localizer::{CycleReport, LocalizeError, Localizer, LocalizerConfig, LocalizerCounts, Mode, Start, MAX_SENSED};
 pub use particles::{kld_bound, Cluster, McConfig, MotionNoise, ParticleError, ParticleSet, Sensed, Weighed};
 pub use rng::Rng;
+pub use scan::{Candidate, ScanConfig, Sweep};

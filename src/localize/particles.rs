@@ -13,6 +13,7 @@
 use super::beam::BeamModel;
 use super::expect::FieldLookup;
 use super::rng::Rng;
+use super::scan::Candidate;
 use crate::f32math::{exp_fast, ln_fast, sin_cos, sqrt};
 use crate::referencing::{wrap, Motion, Reading};
 
@@ -59,6 +60,16 @@ pub struct McConfig {
     /// field is an approximation; a set that believes them fully collapses
     /// on the first place that fits).
     pub temper: f32,
+    /// Adaptive tempering: the exponent is lowered (not below `min_temper`)
+    /// until the weights keep an effective sample size of this fraction of
+    /// the set (0: always `temper`).
+    pub ess_target: f32,
+    /// The least exponent adaptive tempering goes to.
+    pub min_temper: f32,
+    /// The hit's σ grows with the set's spread (its heaviest cluster's
+    /// position σ, from the localizer), up to this, m: a spread set sees
+    /// wide basins, a converged one the sonar's own σ.
+    pub spread_max_m: f32,
     /// The motion noise.
     pub motion: MotionNoise,
     /// KLD sampling: the fewest particles kept ...
@@ -77,10 +88,17 @@ pub struct McConfig {
     pub alpha_fast: f32,
     /// The most of the set injected in one cycle.
     pub max_inject: f32,
+    /// The least share of the set injected each cycle, whatever the
+    /// averages say: the search keeps testing other places, so that a
+    /// cluster must keep the weight against them to be handed off.
+    pub explore: f32,
     /// Each injected particle is the one of this many random poses that
     /// the cycle's readings favour, drawn in proportion to its likelihood
     /// (1: plainly random).
     pub inject_tries: u8,
+    /// Each injected pose takes the heading the readings favour most among
+    /// this many (0: a random heading).
+    pub scan_headings: u8,
 }
 
 impl McConfig {
@@ -88,10 +106,13 @@ impl McConfig {
     pub const DEFAULT: Self = Self {
         beam: BeamModel::DEFAULT,
         temper: 0.5,
+        ess_target: 0.1,
+        min_temper: 0.02,
+        spread_max_m: 0.2,
         motion: MotionNoise {
             along_per_m: 4e-3,
             side_per_m: 1e-3,
-            turn_per_rad: 4e-3,
+            turn_per_rad: 1e-3,
             turn_per_m: 1e-3,
             floor_m: 0.01,
             floor_rad: 0.005,
@@ -104,7 +125,9 @@ impl McConfig {
         alpha_slow: 0.01,
         alpha_fast: 0.2,
         max_inject: 0.25,
-        inject_tries: 4,
+        explore: 0.1,
+        inject_tries: 1,
+        scan_headings: 32,
     };
 }
 
@@ -149,6 +172,10 @@ pub struct Weighed {
     pub mean_likelihood: f32,
     /// The effective sample size 1/Σw² after weighing.
     pub ess: f32,
+    /// The largest log-likelihood of the cycle's readings at a particle.
+    pub best_ll: f32,
+    /// The exponent the likelihoods were taken to (adaptive tempering).
+    pub alpha: f32,
 }
 
 /// Why the set could not do what was asked.
@@ -176,6 +203,10 @@ pub struct ParticleSet<const N: usize> {
     w_fast: f32,
     /// The fraction injected at the last resampling.
     injected: f32,
+    /// The last weighing's exponent.
+    alpha: f32,
+    /// The pose spread the measurement model widens by, m.
+    spread_m: f32,
 }
 
 impl<const N: usize> ParticleSet<N> {
@@ -184,12 +215,14 @@ impl<const N: usize> ParticleSet<N> {
         Self {
             pose: [[0.0; 3]; N],
             weight: [0.0; N],
-            scratch: [0; N],
+            scratch: [1.0f32.to_bits(); N],
             n: 0,
             rng: Rng::new(seed),
             w_slow: 0.0,
             w_fast: 0.0,
             injected: 0.0,
+            alpha: 0.0,
+            spread_m: f32::INFINITY,
         }
     }
 
@@ -323,6 +356,11 @@ impl<const N: usize> ParticleSet<N> {
         for v in self.weight.iter_mut().take(self.n) {
             *v = w;
         }
+        // Every particle's prior factor (kept in the scratch words between
+        // a resampling and the next weighing) is 1.
+        for s in self.scratch.iter_mut() {
+            *s = 1.0f32.to_bits();
+        }
     }
 
     fn reset_averages(&mut self) {
@@ -359,7 +397,13 @@ impl<const N: usize> ParticleSet<N> {
 
     /// The sum of the log-likelihoods of `sensed` at particle pose `p`.
     #[inline]
-    fn log_likelihood(p: &[f32; 3], sensed: &[Sensed], lookup: &FieldLookup<'_, '_>, beam: &BeamModel) -> f32 {
+    fn log_likelihood(
+        p: &[f32; 3],
+        sensed: &[Sensed],
+        lookup: &FieldLookup<'_, '_>,
+        beam: &BeamModel,
+        extra_var_mm2: f32,
+    ) -> f32 {
         let (s, c) = sin_cos(p[2]);
         let mut ll = 0.0;
         if !lookup.is_free(p[0] * 1e3, p[1] * 1e3) {
@@ -372,7 +416,7 @@ impl<const N: usize> ParticleSet<N> {
             let tx = p[0] + c * r.pose[0] - s * r.pose[1];
             let ty = p[1] + s * r.pose[0] + c * r.pose[1];
             let e = lookup.expected(tx * 1e3, ty * 1e3, p[2] + r.pose[2]);
-            ll += ln_fast(beam.likelihood(r.reading, e));
+            ll += ln_fast(beam.likelihood_with(r.reading, e, extra_var_mm2));
         }
         ll
     }
@@ -380,28 +424,33 @@ impl<const N: usize> ParticleSet<N> {
     /// Weighs every particle by the readings `sensed` (transducer poses in
     /// the particles' frame) and normalises the weights.
     pub fn weigh(&mut self, sensed: &[Sensed], lookup: &FieldLookup<'_, '_>, cfg: &McConfig) -> Weighed {
+        let extra = self.extra_var(cfg);
         let k = sensed.iter().filter(|r| r.reading != Reading::Invalid).count();
         if self.n == 0 {
             return Weighed::default();
         }
         let mut best = f32::NEG_INFINITY;
         for (p, w) in self.pose.iter().zip(self.weight.iter_mut()).take(self.n) {
-            let ll = Self::log_likelihood(p, sensed, lookup, &cfg.beam);
+            let ll = Self::log_likelihood(p, sensed, lookup, &cfg.beam, extra);
             *w = ll;
             if ll > best {
                 best = ll;
             }
         }
         let per = 1.0 / k.max(1) as f32;
-        let (mut sum, mut mean) = (0.0f32, 0.0f32);
-        for w in self.weight.iter_mut().take(self.n) {
-            let ll = *w;
+        let mut mean = 0.0f32;
+        for &ll in self.weight.iter().take(self.n) {
             mean += exp_fast(ll * per);
-            let v = exp_fast(cfg.temper * (ll - best));
+        }
+        mean /= self.n as f32;
+        let alpha = self.tempering(best, cfg);
+        self.alpha = alpha;
+        let mut sum = 0.0f32;
+        for (w, &prior) in self.weight.iter_mut().zip(self.scratch.iter()).take(self.n) {
+            let v = f32::from_bits(prior) * exp_fast(alpha * (*w - best));
             *w = v;
             sum += v;
         }
-        mean /= self.n as f32;
         let mut sq = 0.0;
         if sum > 0.0 && sum.is_finite() {
             let inv = 1.0 / sum;
@@ -422,7 +471,67 @@ impl<const N: usize> ParticleSet<N> {
                 self.w_fast += cfg.alpha_fast * (mean - self.w_fast);
             }
         }
-        Weighed { readings: k as u16, mean_likelihood: mean, ess: if sq > 0.0 { 1.0 / sq } else { 0.0 } }
+        Weighed {
+            readings: k as u16,
+            mean_likelihood: mean,
+            ess: if sq > 0.0 { 1.0 / sq } else { 0.0 },
+            best_ll: best,
+            alpha,
+        }
+    }
+
+    /// The exponent the log-likelihoods (now in the weights, the largest
+    /// `best`) are taken to: `temper`, or less, the largest that leaves an
+    /// effective sample size of `ess_target` of the set (bisection on the
+    /// ESS, which falls as the exponent grows). A set far from the pose
+    /// then takes a cycle's readings in part rather than collapsing on the
+    /// first place that fits them (adaptive tempering, as in sequential
+    /// Monte Carlo samplers).
+    fn tempering(&self, best: f32, cfg: &McConfig) -> f32 {
+        let ess = |a: f32| {
+            let (mut s1, mut s2) = (0.0f32, 0.0f32);
+            for (&ll, &prior) in self.weight.iter().zip(self.scratch.iter()).take(self.n) {
+                let v = f32::from_bits(prior) * exp_fast(a * (ll - best));
+                s1 += v;
+                s2 += v * v;
+            }
+            if s2 > 0.0 {
+                s1 * s1 / s2
+            } else {
+                0.0
+            }
+        };
+        let target = cfg.ess_target * self.n as f32;
+        if cfg.ess_target <= 0.0 || ess(cfg.temper) >= target {
+            return cfg.temper;
+        }
+        let (mut lo, mut hi) = (0.0f32, cfg.temper);
+        for _ in 0..12 {
+            let mid = 0.5 * (lo + hi);
+            if ess(mid) >= target {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        lo.max(cfg.min_temper)
+    }
+
+    /// The set's position spread (set by the localizer from its heaviest
+    /// cluster), m, capped at `spread_max_m`.
+    pub fn set_spread(&mut self, spread_m: f32) {
+        self.spread_m = if spread_m.is_finite() { spread_m.max(0.0) } else { f32::INFINITY };
+    }
+
+    /// The hit variance the set's spread adds, mm².
+    fn extra_var(&self, cfg: &McConfig) -> f32 {
+        let s = self.spread_m.min(cfg.spread_max_m) * 1e3;
+        s * s
+    }
+
+    /// The exponent the last weighing took the likelihoods to.
+    pub fn alpha(&self) -> f32 {
+        self.alpha
     }
 
     /// The heaviest cluster: from the heaviest particle, the weighted mean of
@@ -432,36 +541,58 @@ impl<const N: usize> ParticleSet<N> {
     pub fn cluster(&self, radius_m: f32, angle_rad: f32) -> Option<Cluster> {
         let poses = self.poses();
         let weights = self.weights();
-        let mut best = 0usize;
-        let mut wmax = f32::NEG_INFINITY;
-        for (i, &w) in weights.iter().enumerate() {
-            if w > wmax {
-                wmax = w;
-                best = i;
-            }
-        }
-        let mut centre = *poses.get(best)?;
         let r2 = radius_m * radius_m;
         let near = |p: &[f32; 3], c: &[f32; 3]| {
             let (dx, dy) = (p[0] - c[0], p[1] - c[1]);
             dx * dx + dy * dy <= r2 && wrap(p[2] - c[2]).abs() <= angle_rad
         };
-        let mut weight = 0.0;
-        for _ in 0..3 {
-            let (mut sw, mut sx, mut sy, mut sa) = (0.0f32, 0.0f32, 0.0f32, 0.0f32);
-            for (p, &w) in poses.iter().zip(weights) {
-                if near(p, &centre) {
-                    sw += w;
-                    sx += w * (p[0] - centre[0]);
-                    sy += w * (p[1] - centre[1]);
-                    sa += w * wrap(p[2] - centre[2]);
+        // A mean shift from `seed`: the cluster's mean and weight.
+        let shift = |seed: [f32; 3]| {
+            let (mut centre, mut weight) = (seed, 0.0f32);
+            for _ in 0..3 {
+                let (mut sw, mut sx, mut sy, mut sa) = (0.0f32, 0.0f32, 0.0f32, 0.0f32);
+                for (p, &w) in poses.iter().zip(weights) {
+                    if near(p, &centre) {
+                        sw += w;
+                        sx += w * (p[0] - centre[0]);
+                        sy += w * (p[1] - centre[1]);
+                        sa += w * wrap(p[2] - centre[2]);
+                    }
                 }
+                if sw <= 0.0 {
+                    break;
+                }
+                centre = [centre[0] + sx / sw, centre[1] + sy / sw, wrap(centre[2] + sa / sw)];
+                weight = sw;
             }
-            if sw <= 0.0 {
-                break;
+            (centre, weight)
+        };
+        // Seeds at the weight's quantiles (the particles where the running
+        // sum of the weights passes (j + ½)/SEEDS): a cluster holding a share
+        // w of the weight holds about w·SEEDS of them, so the heaviest one is
+        // found whatever single particle weighs most. Seeds inside a cluster
+        // already found are skipped.
+        const SEEDS: usize = 16;
+        let mut found: heapless::Vec<([f32; 3], f32), SEEDS> = heapless::Vec::new();
+        let (mut cum, mut j) = (0.0f32, 0usize);
+        for (p, &w) in poses.iter().zip(weights) {
+            cum += w;
+            while j < SEEDS && cum >= (j as f32 + 0.5) / SEEDS as f32 {
+                j += 1;
+                if found.iter().any(|(c, _)| near(p, c)) {
+                    continue;
+                }
+                let _ = found.push(shift(*p));
             }
-            centre = [centre[0] + sx / sw, centre[1] + sy / sw, wrap(centre[2] + sa / sw)];
-            weight = sw;
+        }
+        if found.is_empty() {
+            let _ = found.push(shift(*poses.first()?));
+        }
+        let (mut centre, mut weight) = (poses.first().copied()?, f32::NEG_INFINITY);
+        for &(c, w) in &found {
+            if w > weight {
+                (centre, weight) = (c, w);
+            }
         }
         let mut covariance = [[0.0f32; 3]; 3];
         let mut spread = [[0.0f32; 3]; 3];
@@ -496,10 +627,18 @@ impl<const N: usize> ParticleSet<N> {
     /// Resamples the weighted set: low-variance resampling to the capacity,
     /// then KLD sampling's size from the bins the new set fills (at least
     /// `min_particles`), then augmented MCL's injection of poses drawn over
-    /// free space (`max(0, 1 − w_fast / w_slow)`, at most `max_inject` of the
-    /// set), each the likeliest of `inject_tries` under `sensed`. Weights
-    /// become uniform.
-    pub fn resample(&mut self, sensed: &[Sensed], lookup: &FieldLookup<'_, '_>, cfg: &McConfig) {
+    /// free space (`1 − w_fast / w_slow`, at least `explore` and at most
+    /// `max_inject` of the set), each drawn among `inject_tries` random poses
+    /// in proportion to their likelihood under `sensed`. Weights become
+    /// uniform.
+    pub fn resample(
+        &mut self,
+        sensed: &[Sensed],
+        lookup: &FieldLookup<'_, '_>,
+        cfg: &McConfig,
+        inject_prior: f32,
+        candidates: &[Candidate],
+    ) {
         let n = self.n;
         if n == 0 || N == 0 {
             return;
@@ -568,39 +707,87 @@ impl<const N: usize> ParticleSet<N> {
         // 5. Augmented MCL's injection.
         let frac = if self.w_slow > 0.0 { (1.0 - self.w_fast / self.w_slow).max(0.0) } else { 0.0 };
         let frac = frac.min(cfg.max_inject);
-        let inject = (frac * m as f32) as usize;
+        let inject = ((frac.max(cfg.explore) * m as f32) as usize).min(m / 2);
         self.injected = inject as f32 / m as f32;
-        for t in (m - inject)..m {
-            if let Some(p) = self.inject_one(sensed, lookup, cfg) {
-                if let Some(slot) = self.pose.get_mut(t) {
-                    *slot = p;
+        // The scan's candidates first (jittered within their node and
+        // heading bin), then draws over free space.
+        let inject = inject.max(candidates.len().min(m / 10));
+        self.injected = inject as f32 / m as f32;
+        let first_injected = m - inject;
+        let h = lookup.node_mm() * 1e-3;
+        let bin = core::f32::consts::TAU / lookup.field().dirs().max(1) as f32;
+        for (k, t) in (first_injected..m).enumerate() {
+            let p = match candidates.get(k) {
+                Some(c) => {
+                    let r = &mut self.rng;
+                    let (jx, jy, jt) = (r.uniform() - 0.5, r.uniform() - 0.5, r.uniform() - 0.5);
+                    Some([c.pose[0] + jx * h, c.pose[1] + jy * h, wrap(c.pose[2] + jt * bin)])
                 }
+                None => self.inject_one(sensed, lookup, cfg),
+            };
+            if let (Some(p), Some(slot)) = (p, self.pose.get_mut(t)) {
+                *slot = p;
             }
         }
         self.set_uniform(m);
+        // Injected poses enter with the belief's mass outside its heaviest
+        // cluster as their prior (Mixture MCL weighs its draws from the
+        // readings by the belief at them): they take over from a cluster
+        // only where the readings say so, not by sheer number.
+        let prior = inject_prior.clamp(1e-3, 1.0).to_bits();
+        for s in self.scratch.iter_mut().take(m).skip(first_injected) {
+            *s = prior;
+        }
     }
 
     /// One pose for injection: the likeliest-in-proportion of
     /// `inject_tries` drawn over free space.
     fn inject_one(&mut self, sensed: &[Sensed], lookup: &FieldLookup<'_, '_>, cfg: &McConfig) -> Option<[f32; 3]> {
         let tries = cfg.inject_tries.max(1);
-        let first = Self::free_pose(&mut self.rng, lookup)?;
+        let first = self.candidate(sensed, lookup, cfg)?;
         if tries == 1 {
             return Some(first);
         }
         // A running weighted choice (reservoir of one), with weights relative
         // to the first candidate's.
-        let base = Self::log_likelihood(&first, sensed, lookup, &cfg.beam);
+        let extra = self.extra_var(cfg);
+        let base = Self::log_likelihood(&first, sensed, lookup, &cfg.beam, extra);
         let (mut pick, mut total) = (first, 1.0f32);
         for _ in 1..tries {
-            let p = Self::free_pose(&mut self.rng, lookup)?;
-            let w = exp_fast(cfg.temper * (Self::log_likelihood(&p, sensed, lookup, &cfg.beam) - base)).min(1e30);
+            let p = self.candidate(sensed, lookup, cfg)?;
+            let w =
+                exp_fast(cfg.temper * (Self::log_likelihood(&p, sensed, lookup, &cfg.beam, extra) - base)).min(1e30);
             total += w;
             if self.rng.uniform() * total < w {
                 pick = p;
             }
         }
         Some(pick)
+    }
+
+    /// A pose for injection: a free position, and the heading the cycle's
+    /// readings favour there among `scan_headings` evenly spaced (at a
+    /// random offset), or any heading when that is 0 or there are no
+    /// readings.
+    fn candidate(&mut self, sensed: &[Sensed], lookup: &FieldLookup<'_, '_>, cfg: &McConfig) -> Option<[f32; 3]> {
+        let mut p = Self::free_pose(&mut self.rng, lookup)?;
+        let h = u32::from(cfg.scan_headings);
+        if h == 0 || sensed.is_empty() {
+            return Some(p);
+        }
+        let step = core::f32::consts::TAU / h as f32;
+        let off = self.rng.uniform() * step - core::f32::consts::PI;
+        let mut best = (f32::NEG_INFINITY, p[2]);
+        let extra = self.extra_var(cfg);
+        for b in 0..h {
+            let th = off + b as f32 * step;
+            let ll = Self::log_likelihood(&[p[0], p[1], th], sensed, lookup, &cfg.beam, extra);
+            if ll > best.0 {
+                best = (ll, th);
+            }
+        }
+        p[2] = wrap(best.1);
+        Some(p)
     }
 
     /// Distinct KLD bins among the first `count` particles, counted in an

@@ -25,8 +25,8 @@ mod source;
 
 pub use blob::{BlobError, EncodeError, BLOB_HEADER_LEN, BLOB_MAGIC, BLOB_VERSION};
 pub use compiled::{Aligned, MapView, COMPILED_VERSION};
-pub use field::{Expected, FieldParts, FieldView};
 pub use crc32::{crc32, Crc32};
+pub use field::{Expected, FieldParts, FieldView};
 pub use source::MapSource;
 
 use heapless::Vec;

@@ -290,11 +290,7 @@ pub fn build_field<M: MapSource + Sync + ?Sized>(
         // No room for the robot anywhere: an empty field (the localizer
         // refuses to search on it).
         return Ok(FieldData {
-            header: FieldHeader {
-                reach_mm: opts.reach_mm,
-                clearance_mm: opts.clearance_mm,
-                ..FieldParts::NONE.header
-            },
+            header: FieldHeader { reach_mm: opts.reach_mm, clearance_mm: opts.clearance_mm, ..FieldParts::NONE.header },
             row_start: vec![0],
             runs: Vec::new(),
             free: Vec::new(),

@@ -202,7 +202,12 @@ impl Default for ImportOptions {
 
 /// Compiles the shapes of `src` with `opt`'s field (free space from the
 /// occupancy grid's known-free cells, when there is one).
-pub fn compile_source(src: &Source, buffer_mm: u32, cell_mm: u32, opt: &ImportOptions) -> Result<(Vec<u8>, MapSummary), String> {
+pub fn compile_source(
+    src: &Source,
+    buffer_mm: u32,
+    cell_mm: u32,
+    opt: &ImportOptions,
+) -> Result<(Vec<u8>, MapSummary), String> {
     let known = src.grid.as_ref().map(|g| move |x: f64, y: f64| g.known_free_at(x, y));
     let known_ref = known.as_ref().map(|f| f as &(dyn Fn(f64, f64) -> bool + Sync));
     build_map_with(&src.shapes, buffer_mm, cell_mm, opt.field.as_ref().map(|f| (f, known_ref)))
@@ -244,8 +249,8 @@ pub fn import(
     let path = input.clone();
     let work = move || -> Result<(Vec<u8>, MapSummary, Source), ImportError> {
         let src = read_source(&input, &opt)?;
-        let (blob, mut summary) =
-            compile_source(&src, buffer_mm, cell_mm, &opt).map_err(|e| ImportError::Content { path: input, problem: e })?;
+        let (blob, mut summary) = compile_source(&src, buffer_mm, cell_mm, &opt)
+            .map_err(|e| ImportError::Content { path: input, problem: e })?;
         summary.extra.extend(src.extra.clone());
         Ok((blob, summary, src))
     };

@@ -6,12 +6,13 @@
 
 use echoloc::credence::net::CredenceNet;
 use echoloc::driver::SpeedOfSound;
-use echoloc::map::StandardMap;
+use echoloc::localize::{self, Localizer, LocalizerConfig, Mode};
+use echoloc::map::{FieldView, StandardMap};
 use echoloc::predict::{Mount, PredictParams};
 use echoloc::referencing::calibration::{CalibrationConfig, HeadingBias};
 use echoloc::referencing::{
-    observe, pose_mm, Ekf, EkfConfig, Motion, MountM, Reading, RecoveryConfig, Referencer, Threshold, ThresholdConfig,
-    Update, Verdict, VerdictConfig, VerdictCounts,
+    observe, pose_mm, Ekf, EkfConfig, Motion, MountM, Reading, RecoveryConfig, Threshold, ThresholdConfig, Update,
+    Verdict, VerdictConfig, VerdictCounts,
 };
 use echoloc::scenario::{Header, Record};
 use echoloc::window::WindowParams;
@@ -95,6 +96,50 @@ pub struct Trace {
     pub duration_s: f64,
     /// The EKF's odometry calibration at the end, if it made one.
     pub calibration: Option<HeadingBias>,
+    /// One row per ring cycle: what the localizer reported at its end.
+    pub cycles: Vec<CycleRow>,
+    /// The particle cloud at the moments that matter (the start, before each
+    /// hand-off, at each wake-up and at the times asked for).
+    pub clouds: Vec<Cloud>,
+    /// The localizer's counts.
+    pub localizer: localize::LocalizerCounts,
+}
+
+/// What the localizer reported at the end of a ring cycle.
+#[derive(Clone, Copy, Debug)]
+pub struct CycleRow {
+    /// The cycle's last firing, s.
+    pub time_s: f64,
+    /// The cycle's mode.
+    pub mode: Mode,
+    /// The estimate after the cycle (x m, y m, φ rad) ...
+    pub state: [f32; 3],
+    /// ... and its covariance.
+    pub covariance: [[f32; 3]; 3],
+    /// The true pose at the cycle's last firing, where known.
+    pub truth: Option<[f64; 3]>,
+    /// The EKF took over at this cycle's end.
+    pub handoff: bool,
+    /// The particles woke at this cycle's end.
+    pub woke: bool,
+    /// Particles weighed (while searching).
+    pub particles: u16,
+    /// The heaviest cluster's weight (while searching).
+    pub cluster_weight: f32,
+    /// Distance driven since the start, m (along the truth where known,
+    /// else the odometry).
+    pub distance_m: f64,
+}
+
+/// The particles at one moment.
+#[derive(Clone, Debug)]
+pub struct Cloud {
+    /// When, s.
+    pub time_s: f64,
+    /// Why: "start", "handoff", "wake", or "asked".
+    pub why: &'static str,
+    /// The particles (x m, y m, φ rad).
+    pub particles: Vec<[f32; 3]>,
 }
 
 impl Trace {
@@ -158,13 +203,37 @@ pub struct Step {
     pub truth: Option<[f32; 3]>,
 }
 
+/// What the localizer is told of the start.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum StartMode {
+    /// The pose, with its σ: the EKF tracks from the first reading.
+    Known,
+    /// Near the pose, within its σ: the particles search around it.
+    Around,
+    /// Nothing: the particles search all free space.
+    Unknown,
+}
+
+/// Particles of the lab's localizer (the boards' figure).
+pub const PARTICLES: usize = 1024;
+
 /// Where the filters start: the pose and its standard deviations (m, m, rad).
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct Start {
     /// x m, y m, φ rad.
     pub pose: [f32; 3],
     /// Standard deviations.
     pub sigma: [f32; 3],
+    /// What the localizer is told (the dead reckoning and the threshold
+    /// method start at `pose` whatever this is).
+    pub mode: StartMode,
+    /// Whether the localizer has particles to search with when lost (off:
+    /// the EKF alone, as before issue #27).
+    pub particles: bool,
+    /// Seed of the particles' draws.
+    pub seed: u64,
+    /// Times (s) at which to keep the particle cloud.
+    pub snapshots: Vec<f64>,
     /// Whether a lost EKF may recover (`echoloc::referencing::recovery`);
     /// off only to measure what recovery does.
     pub recovery: bool,
@@ -183,7 +252,18 @@ pub struct Start {
 impl Start {
     /// At `pose` with standard deviations `sigma`, every part of the EKF on.
     pub fn with_everything(pose: [f32; 3], sigma: [f32; 3]) -> Self {
-        Self { pose, sigma, recovery: true, robust: true, calibration: true, nearer_check: true }
+        Self {
+            pose,
+            sigma,
+            mode: StartMode::Known,
+            particles: true,
+            seed: 1,
+            snapshots: Vec::new(),
+            recovery: true,
+            robust: true,
+            calibration: true,
+            nearer_check: true,
+        }
     }
 }
 
@@ -215,6 +295,14 @@ pub fn steps_of_records(header: &Header, records: &[Record]) -> Result<Vec<Step>
         .collect())
 }
 
+/// The localization field of a compiled map's `blob` (empty when it has
+/// none), for `f`.
+pub fn with_field<R>(blob: &[u8], f: impl FnOnce(&FieldView<'_>) -> R) -> Result<R, String> {
+    let a = crate::map::AlignedBytes::new(blob);
+    let v = echoloc::map::MapView::new(a.bytes()).map_err(|e| format!("the map's blob: {e:?}"))?;
+    Ok(f(v.field()))
+}
+
 /// The prediction settings of the boards: the Polaroid 6500's window on the
 /// map's buffer (`buffer_mm`).
 pub fn predict_params(buffer_mm: u32) -> PredictParams {
@@ -241,9 +329,27 @@ fn f64x3(v: [f32; 3]) -> [f64; 3] {
     v.map(f64::from)
 }
 
-/// Runs every step through the three estimates.
+/// Runs every step through the three estimates; the EKF inside the
+/// localizer (with [`PARTICLES`] particles, or none when `start.particles`
+/// is off) on the map's localization `field`.
 pub fn run(
     map: &StandardMap,
+    field: &FieldView<'_>,
+    mounts: &[Mount],
+    start: &Start,
+    steps: &[Step],
+    progress: &mut dyn FnMut(f64),
+) -> Result<Trace, String> {
+    if start.particles {
+        run_with::<PARTICLES>(map, field, mounts, start, steps, progress)
+    } else {
+        run_with::<0>(map, field, mounts, start, steps, progress)
+    }
+}
+
+fn run_with<const N: usize>(
+    map: &StandardMap,
+    field: &FieldView<'_>,
     mounts: &[Mount],
     start: &Start,
     steps: &[Step],
@@ -262,8 +368,68 @@ pub fn run(
     if !start.calibration {
         cfg.calibration = CalibrationConfig::OFF;
     }
-    let ekf = Ekf::new(start.pose, start.sigma, cfg).map_err(|e| format!("start: {e:?}"))?;
-    let mut ekf = Referencer::new(ekf, verdicts);
+    // Checked as `Ekf::new` checks it, for the message.
+    Ekf::new(start.pose, start.sigma, cfg).map_err(|e| format!("start: {e:?}"))?;
+    let how = match start.mode {
+        StartMode::Known => localize::Start::Known { pose: start.pose, sigma: start.sigma },
+        StartMode::Around => localize::Start::Around { pose: start.pose, sigma: start.sigma },
+        StartMode::Unknown => localize::Start::Unknown,
+    };
+    let mut lcfg = LocalizerConfig::DEFAULT;
+    {
+        // XP_* hooks: temporary, for tuning (remove before merging).
+        let env = |k: &str| std::env::var(k).ok().and_then(|v| v.parse::<f32>().ok());
+        if let Some(v) = env("XP_TRIES") {
+            lcfg.mcl.inject_tries = v as u8;
+        }
+        if let Some(v) = env("XP_SCAN") {
+            lcfg.mcl.scan_headings = v as u8;
+        }
+        if let Some(v) = env("XP_EXPLORE") {
+            lcfg.mcl.explore = v;
+        }
+        if let Some(v) = env("XP_MAXINJ") {
+            lcfg.mcl.max_inject = v;
+        }
+        if let Some(v) = env("XP_TEMPER") {
+            lcfg.mcl.temper = v;
+        }
+        if let Some(v) = env("XP_ESS") {
+            lcfg.mcl.ess_target = v;
+        }
+        if let Some(v) = env("XP_SIG") {
+            lcfg.mcl.beam.sigma_mm = v;
+        }
+        if let Some(v) = env("XP_REL") {
+            lcfg.mcl.beam.sigma_rel = v;
+        }
+        if let Some(v) = env("XP_HCYC") {
+            lcfg.handoff_cycles = v as u8;
+        }
+        if let Some(v) = env("XP_MINP") {
+            lcfg.mcl.min_particles = v as u16;
+        }
+        if let Some(v) = env("XP_SLOW") {
+            lcfg.mcl.alpha_slow = v;
+        }
+        if let Some(v) = env("XP_FAST") {
+            lcfg.mcl.alpha_fast = v;
+        }
+        if let Some(v) = env("XP_SCANN") {
+            lcfg.scan.nodes_per_cycle = v as u16;
+        }
+        if let Some(v) = env("XP_KEEP") {
+            lcfg.scan.keep = v as u8;
+        }
+        if let Some(v) = env("XP_SCANSIG") {
+            lcfg.scan.extra_sigma_mm = v;
+        }
+    }
+    let mut loc: Box<Localizer<N>> =
+        Box::new(Localizer::new(lcfg, cfg, verdicts, how, field, start.seed).map_err(|e| format!("start: {e}"))?);
+    if N > 0 {
+        loc.check_ring(mounts, field).map_err(|e| format!("--ring: {e}"))?;
+    }
     let mut thr = Threshold::new(start.pose, ThresholdConfig::DEFAULT);
     let mut dr = f64x3(start.pose);
     let mut t = Trace::default();
@@ -271,10 +437,77 @@ pub fn run(
     let mut prev_truth: Option<[f64; 3]> = None;
     let mut odometry_m = 0.0;
     let all_true = steps.iter().all(|s| s.truth.is_some());
+    let mut snapshots: Vec<f64> = start.snapshots.clone();
+    snapshots.sort_by(f64::total_cmp);
+    if loc.mode() == Mode::Searching {
+        t.clouds.push(Cloud {
+            time_s: steps.first().map_or(0.0, |s| s.time_s),
+            why: "start",
+            particles: loc.particles().poses().to_vec(),
+        });
+    }
+    let mut last: Option<(f64, Option<[f64; 3]>)> = None;
+    let mut cycle_start_truth: Option<[f64; 3]> = None;
+    let mut close = |loc: &mut Localizer<N>,
+                     t: &mut Trace,
+                     last: Option<(f64, Option<[f64; 3]>)>,
+                     travelled: f64,
+                     t0: Option<[f64; 3]>| {
+        let before = loc.particles().poses().to_vec();
+        let near = t0.map_or(0, |t0| {
+            before
+                .iter()
+                .filter(|p| {
+                    (f64::from(p[0]) - t0[0]).hypot(f64::from(p[1]) - t0[1]) < 0.3
+                        && wrap(f64::from(p[2]) - t0[2]).abs() < 0.17
+                })
+                .count()
+        });
+        let rep = loc.end_cycle(field).map_err(|e| format!("{e}"))?;
+        let (time_s, truth) = last.unwrap_or((0.0, None));
+        if std::env::var("LOC_DEBUG").is_ok() {
+            let st = loc.state();
+            let e = truth.map_or(-1.0, |t| (f64::from(st[0]) - t[0]).hypot(f64::from(st[1]) - t[1]));
+            let (ws, wf) = loc.particles().averages();
+            eprintln!(
+                "t {time_s:.1} mode {:?} near {near} n {} alpha {:.3} ess {:.0} best {:.1} k {} cw {:.2} inj {:.2} slow {ws:.4} fast {wf:.4} err {e:.2} handoff {} woke {}",
+                rep.mode, rep.particles, rep.weighed.alpha, rep.weighed.ess, rep.weighed.best_ll, rep.weighed.readings, rep.cluster_weight, rep.injected, rep.handoff, rep.woke
+            );
+        }
+        if rep.handoff {
+            t.clouds.push(Cloud { time_s, why: "handoff", particles: before });
+        } else if rep.woke {
+            t.clouds.push(Cloud { time_s, why: "wake", particles: loc.particles().poses().to_vec() });
+        }
+        while snapshots.first().is_some_and(|&s| s <= time_s) {
+            snapshots.remove(0);
+            if !loc.particles().is_empty() && loc.mode() == Mode::Searching {
+                t.clouds.push(Cloud { time_s, why: "asked", particles: loc.particles().poses().to_vec() });
+            }
+        }
+        t.cycles.push(CycleRow {
+            time_s,
+            mode: rep.mode,
+            state: loc.state(),
+            covariance: loc.covariance(),
+            truth,
+            handoff: rep.handoff,
+            woke: rep.woke,
+            particles: rep.particles,
+            cluster_weight: rep.cluster_weight,
+            distance_m: travelled,
+        });
+        Ok::<(), String>(())
+    };
     for (i, r) in steps.iter().enumerate() {
         if r.cycle != cycle {
-            ekf.end_cycle();
+            let travelled = if all_true { t.distance_m } else { odometry_m };
+            close(&mut loc, &mut t, last, travelled, cycle_start_truth)?;
             cycle = r.cycle;
+            cycle_start_truth = None;
+        }
+        if cycle_start_truth.is_none() {
+            cycle_start_truth = r.truth.map(f64x3);
         }
         let mount = mounts
             .get(usize::from(r.transducer))
@@ -284,7 +517,7 @@ pub fn run(
         dr = compose(dr, &u);
         odometry_m += (dr[0] - before[0]).hypot(dr[1] - before[1]);
         thr.predict(&u);
-        ekf.odometry(&u).map_err(|e| format!("reading {i}: {e:?}"))?;
+        loc.odometry(&u).map_err(|e| format!("reading {i}: {e}"))?;
         let reading = r.reading;
         // The threshold method predicts from its own pose.
         let o = observe(map, &pose_mm(thr.state()), mount, &params, &net, reading, &verdicts)
@@ -292,7 +525,7 @@ pub fn run(
         if let (Reading::Echo { range_mm }, Some(p), Some(target)) = (reading, o.prediction, o.target) {
             thr.update(range_mm as f32 / 1000.0, p.kappa.to_num::<f32>(), MountM::from(mount), &target);
         }
-        let rep = ekf.reading(map, mount, &params, &net, reading).map_err(|e| format!("reading {i}: {e:?}"))?;
+        let rep = loc.reading(map, mount, &params, &net, reading).map_err(|e| format!("reading {i}: {e}"))?;
         match rep.update {
             Some(Update::Accepted { .. }) => t.accepted += 1,
             Some(Update::Gated { .. }) => t.gated += 1,
@@ -308,29 +541,32 @@ pub fn run(
             t.distance_m += (q[0] - p[0]).hypot(q[1] - p[1]);
         }
         prev_truth = truth.or(prev_truth);
+        last = Some((r.time_s, truth));
         t.times.push(r.time_s);
         t.truth.push(truth);
         t.dead_reckoning.push(dr);
         t.threshold.push(f64x3(thr.state()));
-        let x = ekf.ekf.state();
-        t.ekf.push(f64x3(x));
+        t.ekf.push(f64x3(loc.state()));
         if i % 256 == 0 {
             progress(i as f64 / steps.len().max(1) as f64);
         }
     }
-    ekf.end_cycle();
+    let travelled = if all_true { t.distance_m } else { odometry_m };
+    close(&mut loc, &mut t, last, travelled, cycle_start_truth)?;
     if !all_true {
         t.distance_m = odometry_m;
     }
-    t.covariance = ekf.ekf.covariance();
-    t.calibration = ekf.ekf.calibration().estimate();
-    t.verdicts = ekf.totals();
-    t.lost_count = ekf.ekf.lost_count();
+    let ekf = &loc.referencer().ekf;
+    t.covariance = loc.covariance();
+    t.calibration = ekf.calibration().estimate();
+    t.verdicts = loc.referencer().totals();
+    t.lost_count = ekf.lost_count();
     // Every time it became lost but the last was cleared, and that one too unless it is still lost.
-    t.lost_cleared = t.lost_count - u32::from(ekf.ekf.is_lost());
-    t.cycles_lost = ekf.ekf.cycles_lost();
-    t.recoveries = ekf.ekf.recoveries();
+    t.lost_cleared = t.lost_count - u32::from(ekf.is_lost());
+    t.cycles_lost = ekf.cycles_lost();
+    t.recoveries = ekf.recoveries();
     t.threshold_corrections = thr.corrections();
+    t.localizer = loc.counts();
     t.duration_s = t.times.last().copied().unwrap_or(0.0) - t.times.first().copied().unwrap_or(0.0);
     Ok(t)
 }

@@ -7,6 +7,7 @@
 pub mod agreement;
 pub mod figures;
 pub mod filters;
+pub mod localization;
 pub mod world;
 
 use std::path::{Path, PathBuf};
@@ -77,6 +78,25 @@ pub struct SimulateArgs {
     /// failures from what the scene leaves to be seen. Not a method.
     #[arg(long = "only-consistent")]
     only_consistent: bool,
+    /// What the localizer is told of the start: `unknown` (it searches the
+    /// whole map), `x_m,y_m,θ_deg` (it tracks from there), or
+    /// `x_m,y_m,θ_deg,σ_m,σ_deg` (it searches around there). Default: the
+    /// true start, tracked.
+    #[arg(long, allow_hyphen_values = true)]
+    start: Option<String>,
+    /// A kidnap, `T_s:dx_m,dy_m,dθ_deg`: at T_s the true robot is carried by
+    /// (dx, dy) in the map and turned by dθ; the odometry does not see it.
+    /// Repeatable.
+    #[arg(long = "kidnap", allow_hyphen_values = true)]
+    kidnap: Vec<String>,
+    /// The EKF alone, without particles to search with when it is lost (the
+    /// localizer before issue #27), to measure what they do.
+    #[arg(long = "no-particles")]
+    no_particles: bool,
+    /// Writes one CSV row per ring cycle: the mode, the estimate, its σ and
+    /// the true pose (docs/localization.md).
+    #[arg(long)]
+    trace: Option<PathBuf>,
 }
 
 /// κ at and above which the predictor counts as confident when its
@@ -95,10 +115,22 @@ pub fn simulate_cmd(a: &SimulateArgs) -> Result<String, LabError> {
     if !(0.0..=1.0).contains(&a.inconsistent) {
         return Err(LabError(format!("--inconsistent {}: must be within 0..=1", a.inconsistent)));
     }
-    for p in
-        a.plot.iter().chain(a.plot.as_deref().map(error_plot_path).iter()).chain(a.scenario.iter()).chain(a.log.iter())
+    for p in a
+        .plot
+        .iter()
+        .chain(a.plot.as_deref().map(error_plot_path).iter())
+        .chain(a.scenario.iter())
+        .chain(a.log.iter())
+        .chain(a.trace.iter())
     {
         check_writable(p)?;
+    }
+    let start_arg =
+        a.start.as_deref().map(|s| localization::parse_start(s, "--start")).transpose().map_err(LabError)?;
+    let kidnaps =
+        a.kidnap.iter().map(|s| localization::parse_kidnap(s)).collect::<Result<Vec<_>, _>>().map_err(LabError)?;
+    if kidnaps.windows(2).any(|w| w[1].t_s <= w[0].t_s) {
+        return Err(LabError("--kidnap: give the kidnaps in time order".into()));
     }
     let mounts = ring_mounts(&a.ring)?;
     if let Some(i) = mounts.iter().position(|m| !world::within_reach(m)) {
@@ -109,7 +141,8 @@ pub fn simulate_cmd(a: &SimulateArgs) -> Result<String, LabError> {
     }
     let (map, blob) = load_map_and_blob(&a.map, a.buffer_mm)?;
     let map_crc = echoloc::map::crc32(&blob);
-    let cfg = WorldConfig::new(a.seed, a.distance_m, a.inconsistent, mounts.clone());
+    let mut cfg = WorldConfig::new(a.seed, a.distance_m, a.inconsistent, mounts.clone());
+    cfg.kidnaps = kidnaps;
     let mut bar = Progress::new();
     let run = world::simulate_world(&map, &cfg, &mut |f| bar.set(0.5 * f))
         .map_err(|e| LabError(format!("{}: {e}", a.map.display())))?;
@@ -123,20 +156,29 @@ pub fn simulate_cmd(a: &SimulateArgs) -> Result<String, LabError> {
             }
         }
     }
-    let start = filters::Start {
+    let mut start = filters::Start {
         recovery: !a.no_recovery,
         robust: !a.no_robust,
         calibration: !a.no_calibration,
         nearer_check: !a.no_nearer_check,
+        particles: !a.no_particles,
+        seed: a.seed,
+        snapshots: run.kidnaps.iter().map(|k| k.0).collect(),
         ..start_of(&header)
     };
-    let trace = filters::run(&map, &mounts, &start, &steps, &mut |f| bar.set(0.5 + 0.5 * f))
-        .map_err(|e| LabError(format!("{}: {e}", a.map.display())))?;
+    apply_start(&mut start, start_arg);
+    let trace = filters::with_field(&blob, |field| {
+        filters::run(&map, field, &mounts, &start, &steps, &mut |f| bar.set(0.5 + 0.5 * f))
+    })
+    .and_then(|r| r)
+    .map_err(|e| LabError(format!("{}: {e}", a.map.display())))?;
     bar.finish();
     let mut report = report(&trace, Some(&run));
     let agreement = agreement::measure(&map, &mounts, &run.readings, AGREEMENT_KAPPA, !a.no_nearer_check);
     if let Some(o) = report.as_object_mut() {
         o.insert("agreement".into(), agreement.json());
+        let kidnaps: Vec<f64> = run.kidnaps.iter().map(|k| k.0).collect();
+        o.insert("localization".into(), localization::report(&trace, &kidnaps));
     }
     // Everything is computed before anything is written, and a failed
     // write takes back the files written before it.
@@ -150,6 +192,9 @@ pub fn simulate_cmd(a: &SimulateArgs) -> Result<String, LabError> {
     if let Some(p) = &a.log {
         outputs.push((p.clone(), log_of(&run, &steps).into_bytes()));
     }
+    if let Some(p) = &a.trace {
+        outputs.push((p.clone(), localization::trace_csv(&trace).into_bytes()));
+    }
     if let Some(p) = &a.plot {
         let (paths, errors) = figures::draw(&map, &run.unmapped, &trace);
         outputs.push((p.clone(), paths));
@@ -157,6 +202,27 @@ pub fn simulate_cmd(a: &SimulateArgs) -> Result<String, LabError> {
     }
     write_all(&outputs)?;
     Ok(if a.json { report.to_string() } else { serde_json::to_string_pretty(&report).unwrap_or_default() })
+}
+
+/// What `--start` (or `--initial-pose`) makes of the filters' start:
+/// unknown, a pose to track from (with the default σ), or one to search
+/// around. The dead reckoning and the threshold method start at the given
+/// pose, or, for `unknown`, where they would have.
+pub fn apply_start(start: &mut filters::Start, arg: Option<localization::StartArg>) {
+    use localization::StartArg;
+    match arg {
+        None => {}
+        Some(StartArg::Unknown) => start.mode = filters::StartMode::Unknown,
+        Some(StartArg::At(p)) => {
+            start.pose = p.map(|v| v as f32);
+            start.mode = filters::StartMode::Known;
+        }
+        Some(StartArg::Around(p, s)) => {
+            start.pose = p.map(|v| v as f32);
+            start.sigma = [s[0] as f32, s[0] as f32, s[1] as f32];
+            start.mode = filters::StartMode::Around;
+        }
+    }
 }
 
 /// Where a scenario's filters start.

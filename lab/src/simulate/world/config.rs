@@ -30,6 +30,20 @@ pub fn within_reach(m: &Mount) -> bool {
     m.x_mm.unsigned_abs() <= MAX_MOUNT_MM as u32 && m.y_mm.unsigned_abs() <= MAX_MOUNT_MM as u32
 }
 
+/// A kidnap: at `t_s` the robot is picked up and set down `dx_m`, `dy_m`
+/// away (map frame) and turned by `dtheta_rad`; the wheels do not see it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Kidnap {
+    /// When, s from the start.
+    pub t_s: f64,
+    /// Carried this far along the map's x, m ...
+    pub dx_m: f64,
+    /// ... and y, m ...
+    pub dy_m: f64,
+    /// ... and turned by this, rad.
+    pub dtheta_rad: f64,
+}
+
 /// The simulated world's settings.
 #[derive(Clone, Debug, PartialEq)]
 pub struct WorldConfig {
@@ -57,6 +71,9 @@ pub struct WorldConfig {
     pub binh_after_us: Option<u32>,
     /// The wheel odometry's error model.
     pub odometry: OdometryModel,
+    /// Kidnaps, in time order: after each the route goes on from where the
+    /// robot was set down, for what remains of its length.
+    pub kidnaps: Vec<Kidnap>,
 }
 
 impl WorldConfig {
@@ -75,6 +92,7 @@ impl WorldConfig {
             humidity_pct: DEFAULT_HUMIDITY_PCT,
             binh_after_us: None,
             odometry: OdometryModel::default(),
+            kidnaps: Vec::new(),
         }
     }
 
@@ -107,6 +125,16 @@ impl WorldConfig {
         }
         if !(0.0..=100.0).contains(&self.humidity_pct) {
             return bad(format!("humidity {} %: expected 0 to 100 %", self.humidity_pct));
+        }
+        let mut last = 0.0;
+        for k in &self.kidnaps {
+            if !(k.t_s.is_finite() && k.t_s > last) {
+                return bad(format!("kidnap at {} s: times must be finite, after 0 and increasing", k.t_s));
+            }
+            if !(k.dx_m.is_finite() && k.dy_m.is_finite() && k.dtheta_rad.is_finite()) {
+                return bad(format!("kidnap at {} s: a non-finite displacement", k.t_s));
+            }
+            last = k.t_s;
         }
         self.odometry.check()
     }
@@ -194,6 +222,9 @@ pub enum WorldError {
     },
     /// The firing schedule could not be derived from the driver's settings.
     Timing(String),
+    /// A kidnap that cannot happen: after the run, or setting the robot
+    /// down where the route cannot go on.
+    Kidnap(String),
 }
 
 impl fmt::Display for WorldError {
@@ -214,6 +245,7 @@ impl fmt::Display for WorldError {
                 super::grid::MAX_CELLS
             ),
             WorldError::Timing(m) => write!(f, "sonar timing: {m}"),
+            WorldError::Kidnap(m) => write!(f, "kidnap: {m}"),
         }
     }
 }

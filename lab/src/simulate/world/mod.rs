@@ -37,7 +37,7 @@ mod tests;
 mod timing;
 mod truth;
 
-pub use config::{within_reach, WorldConfig, WorldError};
+pub use config::{within_reach, Kidnap, WorldConfig, WorldError};
 pub use geom::wrap;
 pub use run::{EchoKind, EchoSource, SimReading, SimRun};
 // The rest of the API: the types of `WorldConfig`'s and `SimRun`'s fields,
@@ -102,5 +102,6 @@ pub fn simulate_world(
         duration_s: setup.traj.duration(),
         odometry_errors: setup.odometry_errors,
         heading_bias: setup.odometry_errors.heading_bias(setup.cfg.odometry.wheelbase_m),
+        kidnaps: setup.traj.jumps().to_vec(),
     })
 }

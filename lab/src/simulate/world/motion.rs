@@ -35,6 +35,9 @@ pub struct Trajectory {
     pieces: Vec<Piece>,
     start: Pose,
     duration: f64,
+    /// Kidnaps: at `t` the robot is carried from the first pose to the
+    /// second; its wheels do not turn.
+    jumps: Vec<(f64, Pose, Pose)>,
 }
 
 impl Trajectory {
@@ -67,7 +70,84 @@ impl Trajectory {
             t += dur;
             at = b;
         }
-        Self { pieces, start, duration: t }
+        Self { pieces, start, duration: t, jumps: Vec::new() }
+    }
+
+    /// The pose at the end.
+    pub fn end(&self) -> Pose {
+        self.pieces.last().map_or(self.start, |p| p.b)
+    }
+
+    /// Distance driven (turns in place drive none) up to `t`, m.
+    pub fn driven(&self, t: f64) -> f64 {
+        let mut d = 0.0;
+        for p in &self.pieces {
+            if p.t0 >= t {
+                break;
+            }
+            let s = if p.dur > 0.0 { ((t - p.t0) / p.dur).clamp(0.0, 1.0) } else { 1.0 };
+            if !self.jumps.iter().any(|j| j.0 == p.t0 && p.dur == 0.0) {
+                d += libm::hypot(p.b.0 - p.a.0, p.b.1 - p.a.1) * s;
+            }
+        }
+        d
+    }
+
+    /// Ends the motion at `t` (cutting the piece under way there).
+    pub fn cut(&mut self, t: f64) {
+        let t = t.clamp(0.0, self.duration);
+        self.pieces.retain(|p| p.t0 < t || (p.t0 == t && p.dur == 0.0 && t == 0.0));
+        if let Some(p) = self.pieces.last_mut() {
+            if p.t0 + p.dur > t && p.dur > 0.0 {
+                let s = (t - p.t0) / p.dur;
+                p.b = lerp(p.a, p.b, s);
+                p.dur = t - p.t0;
+            }
+        }
+        self.jumps.retain(|j| j.0 <= t);
+        self.duration = t;
+    }
+
+    /// The robot is carried to `to` at the end of the motion (no time passes).
+    pub fn jump(&mut self, to: Pose) {
+        let from = self.end();
+        let t = self.duration;
+        self.pieces.push(Piece { t0: t, dur: 0.0, a: from, b: to });
+        self.jumps.push((t, from, to));
+    }
+
+    /// Goes on along `route` from the end of the motion: a turn in place
+    /// towards each point, then a straight drive (the route's first point
+    /// is where the robot stands, or near it).
+    pub fn extend(&mut self, route: &[P], speed: f64, turn_rate: f64) {
+        let mut t = self.duration;
+        let mut at = self.end();
+        for &q in route {
+            let l = seg_len((at.0, at.1), q);
+            if l <= MIN_SEGMENT_M {
+                continue;
+            }
+            let dir = libm::atan2(q.1 - at.1, q.0 - at.0);
+            let turn = wrap(dir - at.2);
+            if turn != 0.0 {
+                let b = (at.0, at.1, at.2 + turn);
+                let dur = turn.abs() / turn_rate;
+                self.pieces.push(Piece { t0: t, dur, a: at, b });
+                t += dur;
+                at = b;
+            }
+            let b = (q.0, q.1, at.2);
+            let dur = l / speed;
+            self.pieces.push(Piece { t0: t, dur, a: at, b });
+            t += dur;
+            at = b;
+        }
+        self.duration = t;
+    }
+
+    /// The kidnaps: (time s, carried from, carried to).
+    pub fn jumps(&self) -> &[(f64, Pose, Pose)] {
+        &self.jumps
     }
 
     /// Total time, s.
@@ -150,7 +230,17 @@ impl Odometry {
         let mut odo = prev;
         poses.push(odo);
         for k in 1..=steps {
-            let now = traj.pose(k as f64 * ODOMETRY_DT_S);
+            let t = k as f64 * ODOMETRY_DT_S;
+            let now = traj.pose(t);
+            // A kidnap between the samples: the wheels only saw the motion
+            // before it and after it, so `prev` is carried with the robot.
+            for &(tj, from, to) in traj.jumps() {
+                if tj > t - ODOMETRY_DT_S && tj <= t {
+                    let (s, c) = (libm::sin(to.2 - from.2), libm::cos(to.2 - from.2));
+                    let (dx, dy) = (prev.0 - from.0, prev.1 - from.1);
+                    prev = (to.0 + c * dx - s * dy, to.1 + s * dx + c * dy, prev.2 + (to.2 - from.2));
+                }
+            }
             let dth = now.2 - prev.2;
             let mid = prev.2 + dth / 2.0;
             let ds = (now.0 - prev.0) * libm::cos(mid) + (now.1 - prev.1) * libm::sin(mid);

@@ -67,11 +67,23 @@ impl<'g> FreeSpace<'g> {
     /// The route: `distance_m` long (the last leg cut to fit), starting at a
     /// random cell of the region.
     pub fn route(&self, distance_m: f64, rng: &mut Rng) -> Result<Vec<P>, WorldError> {
+        let at = self.region[((rng.next_f64() * self.region.len() as f64) as usize).min(self.region.len() - 1)];
+        self.route_from(at, distance_m, rng)
+    }
+
+    /// The region's cell holding `p`, if `p` is in the region (a kidnapped
+    /// robot must be set down where the route can go on).
+    pub fn region_cell(&self, p: P) -> Option<usize> {
+        self.grid.cell_of(p).filter(|&k| self.in_region[k])
+    }
+
+    /// A route `distance_m` long from cell `start` of the region.
+    pub fn route_from(&self, start: usize, distance_m: f64, rng: &mut Rng) -> Result<Vec<P>, WorldError> {
         let pick = |rng: &mut Rng| {
             self.region[((rng.next_f64() * self.region.len() as f64) as usize).min(self.region.len() - 1)]
         };
         let goal_min = GOAL_MIN_M.min(self.extent() / 2.0);
-        let mut at = pick(rng);
+        let mut at = start;
         let mut route = vec![self.grid.centre(at)];
         let mut length = 0.0;
         let mut stalled = 0;

@@ -110,8 +110,48 @@ impl Setup {
         let occ: Vec<bool> = owner.iter().map(|&o| o != u32::MAX).collect();
         let map_dist = grid.edt(&occ);
         let space = FreeSpace::new(&grid, &map_dist, cfg.clearance_m)?;
-        let route = space.route(cfg.distance_m, &mut Rng::substream(cfg.seed, STREAM_ROUTE))?;
-        let traj = Trajectory::new(&route, cfg.speed_m_s, cfg.turn_rate_deg_s.to_radians());
+        let mut route_rng = Rng::substream(cfg.seed, STREAM_ROUTE);
+        let mut route = space.route(cfg.distance_m, &mut route_rng)?;
+        let turn = cfg.turn_rate_deg_s.to_radians();
+        let mut traj = Trajectory::new(&route, cfg.speed_m_s, turn);
+        // Each kidnap cuts the drive, carries the robot, and plans the rest
+        // of the route's length from where it was set down.
+        let mut legs = vec![route.clone()];
+        let mut leg_start = 0.0;
+        for k in &cfg.kidnaps {
+            if k.t_s >= traj.duration() {
+                return Err(WorldError::Kidnap(format!(
+                    "at {} s: the drive is over by then ({:.1} s)",
+                    k.t_s,
+                    traj.duration()
+                )));
+            }
+            // On the odometry's sample grid, so the wheels see no half step.
+            let t = (k.t_s / super::motion::ODOMETRY_DT_S).round() * super::motion::ODOMETRY_DT_S;
+            let driven = traj.driven(t);
+            let left = cfg.distance_m - driven;
+            if let Some(last) = legs.last_mut() {
+                *last = driven_part(last, driven - leg_start);
+            }
+            leg_start = driven;
+            traj.cut(t);
+            let from = traj.end();
+            let to = (from.0 + k.dx_m, from.1 + k.dy_m, from.2 + k.dtheta_rad);
+            let cell = space.region_cell((to.0, to.1)).ok_or_else(|| {
+                WorldError::Kidnap(format!(
+                    "at {} s: set down at ({:.2}, {:.2}) m, which is not in the free space the route drives in",
+                    k.t_s, to.0, to.1
+                ))
+            })?;
+            traj.jump(to);
+            let mut leg = space.route_from(cell, left.max(super::grid::CELL_M), &mut route_rng)?;
+            leg.insert(0, (to.0, to.1));
+            traj.extend(&leg, cfg.speed_m_s, turn);
+            legs.push(leg);
+        }
+        if !cfg.kidnaps.is_empty() {
+            route = legs.concat();
+        }
         let odometry_errors =
             OdometryErrors::draw(&cfg.odometry, &mut Rng::substream(cfg.seed, STREAM_ODOMETRY_ERRORS));
         let odometry = Odometry::integrate(
@@ -141,7 +181,9 @@ impl Setup {
             }
         }
         let mut on_route = vec![false; grid.len()];
-        grid.mark_polyline(&mut on_route, &route, Grid::MARGIN / 2.0);
+        for leg in &legs {
+            grid.mark_polyline(&mut on_route, leg, Grid::MARGIN / 2.0);
+        }
         let route_dist = grid.edt(&on_route);
         let areas = obstacle_areas(map, &outlines);
         let fixed: Vec<bool> =
@@ -182,8 +224,29 @@ impl Setup {
         })
     }
 
-    /// The route's length, m.
+    /// The route's length, m: what was driven (a carry drives nothing).
     pub fn route_length(&self) -> f64 {
-        length(&self.route)
+        if self.cfg.kidnaps.is_empty() {
+            length(&self.route)
+        } else {
+            self.traj.driven(self.traj.duration())
+        }
     }
+}
+
+/// The first `len` metres of `route`.
+fn driven_part(route: &[P], len: f64) -> Vec<P> {
+    let mut out = vec![route[0]];
+    let mut acc = 0.0;
+    for w in route.windows(2) {
+        let l = libm::hypot(w[1].0 - w[0].0, w[1].1 - w[0].1);
+        if acc + l >= len {
+            let t = if l > 0.0 { ((len - acc) / l).max(0.0) } else { 0.0 };
+            out.push((w[0].0 + (w[1].0 - w[0].0) * t, w[0].1 + (w[1].1 - w[0].1) * t));
+            return out;
+        }
+        acc += l;
+        out.push(w[1]);
+    }
+    out
 }

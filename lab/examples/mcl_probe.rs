@@ -1,0 +1,157 @@
+//! Diagnostic: how well the beam model on the field tells the true pose from others.
+use echoloc::localize::{FieldLookup, McConfig, ParticleSet, Rng, Sensed};
+use echoloc::referencing::Reading;
+use echoloc_lab::simulate::{filters, to_records, world};
+
+fn main() {
+    let args: Vec<String> = std::env::args().collect();
+    let map_path = std::path::Path::new(&args[1]);
+    let seed: u64 = args[2].parse().unwrap();
+    let inc: f64 = args[3].parse().unwrap();
+    let (map, blob) = echoloc_lab::predict::load_map_and_blob(map_path, 100).unwrap();
+    let mounts = echoloc_lab::predict::ring_mounts("pioneer16").unwrap();
+    let cfg = world::WorldConfig::new(seed, 40.0, inc, mounts.clone());
+    let run = world::simulate_world(&map, &cfg, &mut |_| {}).unwrap();
+    let records = to_records(&run).unwrap();
+    let a = echoloc_lab::map::AlignedBytes::new(&blob);
+    let v = echoloc::map::MapView::new(a.bytes()).unwrap();
+    let lookup = FieldLookup::new(v.field());
+    let mut mc = McConfig::DEFAULT;
+    let env = |k: &str, d: f32| std::env::var(k).ok().and_then(|v| v.parse().ok()).unwrap_or(d);
+    mc.beam.sigma_mm = env("SIG", mc.beam.sigma_mm);
+    mc.beam.sigma_rel = env("REL", mc.beam.sigma_rel);
+    mc.beam.unsure_sigma_scale = env("USC", mc.beam.unsure_sigma_scale);
+    mc.beam.p_miss_sure = env("MISS", mc.beam.p_miss_sure);
+    mc.beam.p_unpredicted = env("UNP", mc.beam.p_unpredicted);
+    let hit = env("HIT", mc.beam.sure_mix[0]);
+    mc.beam.sure_mix = [hit, (1.0 - hit) * 0.66, (1.0 - hit) * 0.34];
+    let mut stats = (0usize, 0usize, 0f64, 0f64, 0f64, 0f64);
+    let sound = echoloc::driver::SpeedOfSound::from_um_per_s(run.sound.um_per_s()).unwrap();
+    let mut rng = Rng::new(5);
+    let randoms: Vec<[f32; 3]> = (0..4096).map(|_| ParticleSet::<0>::free_pose(&mut rng, &lookup).unwrap()).collect();
+    let ntraj: usize = std::env::var("NTRAJ").ok().and_then(|v| v.parse().ok()).unwrap_or(20000);
+    // Random starting poses, each carried by the truth's own motion relative to the truth's start.
+    let starts: Vec<[f32; 3]> = (0..ntraj).map(|_| ParticleSet::<0>::free_pose(&mut rng, &lookup).unwrap()).collect();
+    let mut acc = vec![0f32; ntraj];
+    // Displaced starts: (d m, δ deg) around the true start, 8 directions each.
+    let disp: Vec<(f32, f32)> = vec![
+        (0.1, 0.0),
+        (0.2, 0.0),
+        (0.3, 0.0),
+        (0.5, 0.0),
+        (0.8, 0.0),
+        (0.0, 3.0),
+        (0.0, 6.0),
+        (0.0, 10.0),
+        (0.0, 15.0),
+        (0.3, 6.0),
+    ];
+    let mut dacc = vec![[0f32; 8]; disp.len()];
+    let mut acc_truth = 0f32;
+    let truth0 = records[0].truth;
+    let temper = env("TEMPER", 1.0);
+    // Group by cycle.
+    let mut c = 0;
+    while c < run.cycles {
+        let recs: Vec<_> = records.iter().filter(|r| r.cycle == c as u32).collect();
+        if recs.is_empty() {
+            break;
+        }
+        let t0 = recs[0].truth;
+        let sensed: Vec<Sensed> = recs
+            .iter()
+            .map(|r| {
+                let m = &mounts[r.transducer as usize];
+                let (s, co) = (t0[2].sin(), t0[2].cos());
+                // transducer pose in truth frame at cycle start, from true poses
+                let mx = m.x_mm as f32 / 1000.0;
+                let my = m.y_mm as f32 / 1000.0;
+                let tx = r.truth[0] + r.truth[2].cos() * mx - r.truth[2].sin() * my;
+                let ty = r.truth[1] + r.truth[2].sin() * mx + r.truth[2].cos() * my;
+                let (dx, dy) = (tx - t0[0], ty - t0[1]);
+                let pose = [
+                    co * dx + s * dy,
+                    -s * dx + co * dy,
+                    r.truth[2] - t0[2] + (m.heading_mdeg as f32 / 1000.0).to_radians(),
+                ];
+                let reading = match r.echo_us {
+                    Some(us) => Reading::Echo { range_mm: sound.range_mm(us) },
+                    None => Reading::NoEcho,
+                };
+                Sensed { pose, reading }
+            })
+            .collect();
+        let ll = |p: &[f32; 3]| -> f32 {
+            let (s, co) = (p[2].sin(), p[2].cos());
+            let mut l = 0.0;
+            for r in &sensed {
+                let tx = p[0] + co * r.pose[0] - s * r.pose[1];
+                let ty = p[1] + s * r.pose[0] + co * r.pose[1];
+                let e = lookup.expected(tx * 1e3, ty * 1e3, p[2] + r.pose[2]);
+                l += mc.beam.likelihood(r.reading, e).ln();
+            }
+            l
+        };
+        let lt = ll(&t0);
+        // The truth's motion since the start, in the start's frame, applied to each random start.
+        let (s0, c0) = (truth0[2].sin(), truth0[2].cos());
+        let (gx, gy) = (t0[0] - truth0[0], t0[1] - truth0[1]);
+        let rel = [c0 * gx + s0 * gy, -s0 * gx + c0 * gy, t0[2] - truth0[2]];
+        acc_truth += temper * lt;
+        for (k, st) in starts.iter().enumerate() {
+            let (s1, c1) = (st[2].sin(), st[2].cos());
+            let p = [st[0] + c1 * rel[0] - s1 * rel[1], st[1] + s1 * rel[0] + c1 * rel[1], st[2] + rel[2]];
+            acc[k] += temper * ll(&p);
+        }
+        for (di, &(d, deg)) in disp.iter().enumerate() {
+            for k in 0..8 {
+                let a = k as f32 * 0.785;
+                let sgn = if k % 2 == 0 { 1.0 } else { -1.0 };
+                let st = [truth0[0] + d * a.cos(), truth0[1] + d * a.sin(), truth0[2] + sgn * deg.to_radians()];
+                let (s1, c1) = (st[2].sin(), st[2].cos());
+                let p = [st[0] + c1 * rel[0] - s1 * rel[1], st[1] + s1 * rel[0] + c1 * rel[1], st[2] + rel[2]];
+                dacc[di][k] += temper * ll(&p);
+            }
+        }
+        if c % 10 == 9 {
+            for (di, &(d, deg)) in disp.iter().enumerate() {
+                let mean: f32 = dacc[di].iter().sum::<f32>() / 8.0;
+                print!("  [{d} m {deg}°: {:.0}]", mean - acc_truth);
+            }
+            println!();
+            let mut order: Vec<usize> = (0..ntraj).collect();
+            order.sort_by(|&a, &b| acc[b].partial_cmp(&acc[a]).unwrap());
+            let better = acc.iter().filter(|&&a| a > acc_truth).count();
+            let best = order[0];
+            let st = starts[best];
+            let dist = ((st[0] - truth0[0]).powi(2) + (st[1] - truth0[1]).powi(2)).sqrt();
+            println!("after {} cycles: truth acc {:.1}; {} of {} random starts better; best {:.1} at {:.2} m from the true start", c+1, acc_truth, better, ntraj, acc[best], dist);
+        }
+        let mut lr: Vec<f32> = randoms.iter().map(ll).collect();
+        lr.sort_by(|a, b| b.partial_cmp(a).unwrap());
+        let better = lr.iter().filter(|&&x| x >= lt).count();
+        // near-truth perturbations
+        let near: Vec<f32> = (0..8)
+            .map(|k| {
+                let a = k as f32 * 0.785;
+                ll(&[t0[0] + 0.15 * a.cos(), t0[1] + 0.15 * a.sin(), t0[2]])
+            })
+            .collect();
+        stats.0 += 1;
+        if lt >= lr[0] {
+            stats.1 += 1;
+        }
+        stats.2 += (lt - lr[0]) as f64;
+        stats.3 += (lt - lr[40]) as f64;
+        let nmin = near.iter().cloned().fold(f32::INFINITY, f32::min);
+        stats.4 += (lt - nmin) as f64;
+        stats.5 += (better as f64).ln_1p();
+        if std::env::var("V").is_ok() && c % 5 == 0 {
+            println!("cycle {c}: truth {lt:.1}  best-random {:.1} p99 {:.1} median {:.1}  randoms>=truth {better}/4096  near(0.15m) {:.1}..{:.1}", lr[0], lr[40], lr[2048], near.iter().cloned().fold(f32::INFINITY, f32::min), near.iter().cloned().fold(f32::NEG_INFINITY, f32::max));
+        }
+        c += 1;
+    }
+    let n = stats.0 as f64;
+    println!("cycles {} truth>=best {:.2} mean(truth-best) {:.1} mean(truth-p99) {:.1} mean(truth-near0.15min) {:.1} mean ln(1+#better) {:.2}", stats.0, stats.1 as f64 / n, stats.2 / n, stats.3 / n, stats.4 / n, stats.5 / n);
+    let _ = filters::PARTICLES;
+}

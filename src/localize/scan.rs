@@ -1,0 +1,207 @@
+//! The search's proposals: a sweep over the field's free nodes, each
+//! scored at every one of its headings against the cycle's readings, cheaply
+//! enough to cover a depot-sized map in a few cycles; the best go to the
+//! particle set as candidates, and the particles' own, exact model judges
+//! them over the next cycles.
+//!
+//! The score of a node at heading bin `b` is the sum over the readings of
+//! the beam model's log-likelihood for the byte the field holds at the
+//! node nearest the transducer (within two nodes of the robot's node) for
+//! the transducer's heading bin: no interpolation, and the hit's variance
+//! grown by `extra_sigma_mm` to cover what that costs (a transducer is up
+//! to a node's diagonal from the node it is read at). Per reading, the
+//! log-likelihood of each of the 256 field bytes is computed once a cycle
+//! (in 1/16 nat); per reading and heading bin, the neighbour and the
+//! heading bin are too. A node then costs its 25 neighbours' lookups and
+//! one table read and add per reading and heading.
+
+use super::beam::BeamModel;
+use super::expect::FieldLookup;
+use super::particles::Sensed;
+use crate::f32math::{ln_fast, sin_cos};
+use crate::map::field::Expected;
+use crate::referencing::Reading;
+
+/// Readings a scan uses (the first ones of the cycle that are not invalid).
+pub const SCAN_READINGS: usize = 16;
+/// Headings a scan covers: the field's, when it has at most this many.
+pub const SCAN_DIRS: usize = 64;
+/// Candidates a scan keeps.
+pub const SCAN_KEEP: usize = 32;
+
+/// The scan's settings.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct ScanConfig {
+    /// Free nodes scored each cycle (0: no scan).
+    pub nodes_per_cycle: u16,
+    /// The best this many (at most [`SCAN_KEEP`]) become candidates.
+    pub keep: u8,
+    /// The hit's σ grows by this (in quadrature), mm.
+    pub extra_sigma_mm: f32,
+}
+
+impl ScanConfig {
+    /// 1 024 nodes a cycle (a 400 m² map every six cycles at 250 mm
+    /// nodes), the best 32 kept, hits widened by 150 mm.
+    pub const DEFAULT: Self = Self { nodes_per_cycle: 1024, keep: 32, extra_sigma_mm: 150.0 };
+}
+
+/// A proposal: a pose and its scan score (nats).
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Candidate {
+    /// x m, y m, φ rad.
+    pub pose: [f32; 3],
+    /// The scan's log-likelihood.
+    pub score: f32,
+}
+
+/// Where the sweep is: the next node, and the stride through the nodes.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Sweep {
+    next: u32,
+}
+
+/// The neighbour offsets a transducer may fall on: −2..=2 nodes each way.
+const REACH: i32 = 2;
+const SIDE: usize = (2 * REACH + 1) as usize;
+
+/// A stride through `n` nodes that visits each once per pass and spreads
+/// consecutive visits over the map: a prime near n·0.618 not dividing n.
+fn stride(n: u32) -> u32 {
+    const PRIMES: [u32; 12] = [7_919, 6_143, 4_099, 3_079, 2_053, 1_543, 1_031, 769, 521, 257, 131, 61];
+    let target = (n as u64 * 618 / 1000) as u32;
+    PRIMES.iter().copied().find(|&p| p <= target.max(1) && n % p != 0).unwrap_or(1)
+}
+
+impl Sweep {
+    /// Scores the next `cfg.nodes_per_cycle` free nodes of the field at
+    /// every heading bin against `sensed` and keeps the best `cfg.keep`
+    /// in `out` (cleared first), best first. Nothing when the field has
+    /// more than [`SCAN_DIRS`] headings, no free node, or no usable reading.
+    pub fn scan(
+        &mut self,
+        sensed: &[Sensed],
+        lookup: &FieldLookup<'_, '_>,
+        beam: &BeamModel,
+        cfg: &ScanConfig,
+        out: &mut heapless::Vec<Candidate, SCAN_KEEP>,
+    ) {
+        out.clear();
+        let f = lookup.field();
+        let dirs = f.dirs() as usize;
+        let nodes = f.nodes();
+        if dirs == 0 || dirs > SCAN_DIRS || f.free_nodes() == 0 || cfg.nodes_per_cycle == 0 {
+            return;
+        }
+        let node_mm = f.header().node_mm as f32;
+        let keep = usize::from(cfg.keep).min(SCAN_KEEP);
+        // Per reading: the log-likelihood of every field byte (1/16 nat),
+        // and per heading bin the neighbour and the transducer's heading bin.
+        let mut lut = [[0i8; 256]; SCAN_READINGS];
+        let mut geo = [[(0u8, 0u8); SCAN_DIRS]; SCAN_READINGS];
+        let extra = cfg.extra_sigma_mm * cfg.extra_sigma_mm;
+        let mut k = 0usize;
+        for r in sensed.iter().filter(|r| r.reading != Reading::Invalid) {
+            let (Some(l), Some(g)) = (lut.get_mut(k), geo.get_mut(k)) else { break };
+            for (b, v) in l.iter_mut().enumerate() {
+                let e = Expected::decode(b as u8);
+                let ll = ln_fast(beam.likelihood_with(r.reading, Some(e), extra));
+                *v = (ll * 16.0).round().clamp(-127.0, 127.0) as i8;
+            }
+            for (b, slot) in g.iter_mut().enumerate().take(dirs) {
+                let th = b as f32 * core::f32::consts::TAU / dirs as f32;
+                let (s, c) = sin_cos(th);
+                let (x, y) = ((c * r.pose[0] - s * r.pose[1]) * 1e3, (s * r.pose[0] + c * r.pose[1]) * 1e3);
+                let di = libm::roundf(x / node_mm).clamp(-REACH as f32, REACH as f32) as i32;
+                let dj = libm::roundf(y / node_mm).clamp(-REACH as f32, REACH as f32) as i32;
+                let nb = ((dj + REACH) * SIDE as i32 + (di + REACH)) as u8;
+                let d = libm::roundf((th + r.pose[2]) * dirs as f32 / core::f32::consts::TAU) as i32;
+                *slot = (nb, d.rem_euclid(dirs as i32) as u8);
+            }
+            k += 1;
+        }
+        if k == 0 {
+            return;
+        }
+        let (lut, geo) = (lut.get(..k).unwrap_or(&[]), geo.get(..k).unwrap_or(&[]));
+        let step = stride(nodes);
+        let mut scored = 0u32;
+        let mut visited = 0u32;
+        let mut worst = i32::MIN;
+        let mut best: heapless::Vec<(i32, u32, u8), SCAN_KEEP> = heapless::Vec::new();
+        while scored < u32::from(cfg.nodes_per_cycle) && visited < nodes {
+            let n = self.next % nodes;
+            self.next = (n + step) % nodes;
+            visited += 1;
+            if !f.is_free(n) {
+                continue;
+            }
+            scored += 1;
+            let Some((col, row)) = f.cell_of(n) else { continue };
+            // The 5 × 5 neighbours' entries (none where not stored).
+            let mut nb: [Option<&[u8]>; SIDE * SIDE] = [None; SIDE * SIDE];
+            for (j, line) in nb.chunks_mut(SIDE).enumerate() {
+                let rr = row as i32 + j as i32 - REACH;
+                if rr < 0 {
+                    continue;
+                }
+                for (i, e) in line.iter_mut().enumerate() {
+                    let cc = col as i32 + i as i32 - REACH;
+                    if cc >= 0 {
+                        *e = f.node_at(cc as u32, rr as u32).and_then(|m| f.entries(m));
+                    }
+                }
+            }
+            for b in 0..dirs {
+                let mut score = 0i32;
+                for (l, g) in lut.iter().zip(geo) {
+                    let (nbi, d) = g.get(b).copied().unwrap_or((0, 0));
+                    let byte = nb.get(usize::from(nbi)).copied().flatten().and_then(|e| e.get(usize::from(d)));
+                    // Off the field: as bad as the worst byte, and a little worse.
+                    score += byte.map_or(-128, |&v| i32::from(l.get(usize::from(v)).copied().unwrap_or(-128)));
+                }
+                if best.len() < keep {
+                    let _ = best.push((score, n, b as u8));
+                    if best.len() == keep {
+                        worst = best.iter().map(|c| c.0).min().unwrap_or(i32::MIN);
+                    }
+                } else if score > worst {
+                    if let Some(w) = best.iter_mut().min_by_key(|c| c.0) {
+                        *w = (score, n, b as u8);
+                    }
+                    worst = best.iter().map(|c| c.0).min().unwrap_or(i32::MIN);
+                }
+            }
+        }
+        best.sort_unstable_by(|a, b| b.0.cmp(&a.0));
+        for &(score, n, b) in &best {
+            if let Some((x, y)) = f.position_mm(n) {
+                let th = crate::referencing::wrap(b as f32 * core::f32::consts::TAU / dirs as f32);
+                let _ =
+                    out.push(Candidate { pose: [x as f32 * 1e-3, y as f32 * 1e-3, th], score: score as f32 / 16.0 });
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn stride_visits_every_node_once_a_pass() {
+        for n in [1u32, 2, 7, 61, 100, 1031, 6291, 8000, 70_001] {
+            let s = stride(n);
+            let mut seen = [false; 80_000];
+            let mut k = 0u32;
+            for _ in 0..n {
+                assert!(!seen[k as usize], "n {n} stride {s}");
+                seen[k as usize] = true;
+                k = (k + s) % n;
+            }
+        }
+    }
+}
