@@ -18,6 +18,7 @@
 use heapless::Vec;
 
 use super::expect::FieldLookup;
+use super::history::History;
 use super::particles::{Cluster, McConfig, ParticleError, ParticleSet, Sensed, Weighed};
 use super::scan::{Candidate, ScanConfig, Sweep, SCAN_KEEP};
 use crate::credence::Credence;
@@ -162,6 +163,20 @@ pub struct LocalizerConfig {
     pub handoff_cycles: u8,
     /// ... each with at least this many readings.
     pub handoff_min_readings: u8,
+    /// A scan's candidate that beats the heaviest cluster on the readings
+    /// of the last cycles ([`super::history`]) by this many nats (the
+    /// hits widened by `verify_sigma_mm`) enters the set as
+    /// `verified_share` of it, not as one particle.
+    pub verify_margin: f32,
+    /// See `verify_margin`, mm.
+    pub verify_sigma_mm: f32,
+    /// See `verify_margin`.
+    pub verified_share: f32,
+    /// The scan's candidates, ranked on the history, this many go on.
+    pub verify_keep: u8,
+    /// ... and leads the search's best proposal elsewhere on the last
+    /// cycles' readings by this many nats, every one of those cycles.
+    pub handoff_lead: f32,
     /// The EKF's standard deviations at a hand-off are at least these.
     pub handoff_sigma_floor: [f32; 3],
     /// When the EKF is lost, particles are drawn around its estimate with
@@ -169,8 +184,14 @@ pub struct LocalizerConfig {
     pub wake_sigma: [f32; 3],
     /// ... or this many times its own, if larger ...
     pub wake_sigma_scale: f32,
-    /// ... and this share of them over all free space.
+    /// ... and this share of them over all free space. While they search,
+    /// the EKF goes on beside them; when it has not been lost for
+    /// `calm_cycles` cycles in a row and the particles hold no cluster of
+    /// half the weight elsewhere, the search ends (a false alarm costs a
+    /// few cycles, not a search).
     pub wake_global: f32,
+    /// See `wake_global`.
+    pub calm_cycles: u8,
 }
 
 impl LocalizerConfig {
@@ -185,10 +206,16 @@ impl LocalizerConfig {
         handoff_angle_rad: 5.0 * core::f32::consts::PI / 180.0,
         handoff_cycles: 5,
         handoff_min_readings: 4,
+        verify_margin: 15.0,
+        verify_sigma_mm: 150.0,
+        verified_share: 0.15,
+        verify_keep: 16,
+        handoff_lead: 25.0,
         handoff_sigma_floor: [0.03, 0.03, 1.0 * core::f32::consts::PI / 180.0],
         wake_sigma: [0.5, 0.5, 15.0 * core::f32::consts::PI / 180.0],
         wake_sigma_scale: 3.0,
         wake_global: 0.3,
+        calm_cycles: 3,
     };
 }
 
@@ -213,6 +240,11 @@ pub struct CycleReport {
     pub dropped: u16,
     /// What weighing the particles did (while searching).
     pub weighed: Weighed,
+    /// How far the heaviest cluster led the search's best proposal
+    /// elsewhere on the last cycles' readings, nats (while searching).
+    pub lead: f32,
+    /// The search ended because the EKF beside it was no longer lost.
+    pub calmed: bool,
 }
 
 /// Counts over the run.
@@ -229,6 +261,8 @@ pub struct LocalizerCounts {
     pub handoffs: u32,
     /// Times the particles woke.
     pub wakes: u32,
+    /// Searches ended because the EKF beside them was no longer lost.
+    pub calmed: u32,
 }
 
 /// The localizer: the EKF (with its verdicts) and `N` particles. `N = 0`
@@ -247,6 +281,11 @@ pub struct Localizer<const N: usize> {
     cluster: Option<Cluster>,
     converged: u8,
     sweep: Sweep,
+    history: History,
+    /// While searching after a wake, the EKF goes on tracking beside the
+    /// particles; this many cycles in a row it has not been lost.
+    ekf_awake: bool,
+    calm: u8,
     counts: LocalizerCounts,
 }
 
@@ -280,6 +319,9 @@ impl<const N: usize> Localizer<N> {
             cluster: None,
             converged: 0,
             sweep: Sweep::default(),
+            history: History::new(),
+            ekf_awake: false,
+            calm: 0,
             counts: LocalizerCounts::default(),
         };
         l.start(start, field)?;
@@ -324,6 +366,9 @@ impl<const N: usize> Localizer<N> {
         self.offset = [0.0; 3];
         self.converged = 0;
         self.cluster = None;
+        self.history.clear();
+        self.ekf_awake = false;
+        self.calm = 0;
         if self.mode == Mode::Searching {
             self.cluster = self.particles.cluster(self.cfg.handoff_radius_m, self.cfg.handoff_angle_rad);
         }
@@ -351,7 +396,7 @@ impl<const N: usize> Localizer<N> {
         if !u.is_finite() {
             return Err(LocalizeError::NotFinite);
         }
-        if self.mode != Mode::Searching {
+        if self.mode != Mode::Searching || self.ekf_awake {
             self.referencer.odometry(u)?;
         }
         self.offset = compose(&self.offset, &[u.dx, u.dy, u.dphi]);
@@ -375,7 +420,7 @@ impl<const N: usize> Localizer<N> {
         if self.sensed.push(Sensed { pose, reading }).is_err() {
             self.dropped = self.dropped.saturating_add(1);
         }
-        if self.mode == Mode::Searching {
+        if self.mode == Mode::Searching && !self.ekf_awake {
             return Ok(ReadingReport { prediction: None, verdict: Verdict::Inconclusive, target: None, update: None });
         }
         Ok(self.referencer.reading(map, mount, params, credence, reading)?)
@@ -395,10 +440,16 @@ impl<const N: usize> Localizer<N> {
             woke: false,
             dropped: self.dropped,
             weighed: Weighed::default(),
+            lead: 0.0,
+            calmed: false,
         };
         match self.mode {
             Mode::Searching => {
                 let cfg = self.cfg;
+                if self.ekf_awake {
+                    self.referencer.end_cycle();
+                    self.calm = if self.referencer.ekf.is_lost() { 0 } else { self.calm.saturating_add(1) };
+                }
                 // The model widens with the last cluster's position spread.
                 let spread = self.cluster.map_or(f32::INFINITY, |c| {
                     let p = c.covariance;
@@ -430,7 +481,14 @@ impl<const N: usize> Localizer<N> {
                 };
                 let weight = cluster.map_or(0.0, |c| c.weight);
                 let enough = w.readings >= u16::from(cfg.handoff_min_readings);
-                self.converged = match (weight >= cfg.handoff_weight && enough, same, weight >= 0.5) {
+                // The search's proposals, and how far the cluster leads the
+                // best of them elsewhere on the last cycles' readings.
+                let mut candidates: heapless::Vec<Candidate, SCAN_KEEP> = heapless::Vec::new();
+                self.sweep.scan(&self.sensed, &lookup, &cfg.mcl.beam, &cfg.scan, &mut candidates);
+                let lead = self.verify(&mut candidates, cluster.as_ref(), &lookup);
+                report.lead = lead;
+                let ahead = lead >= cfg.handoff_lead;
+                self.converged = match (weight >= cfg.handoff_weight && enough && ahead, same, weight >= 0.5) {
                     (true, true, _) => self.converged.saturating_add(1),
                     (true, false, _) => 1,
                     (false, true, true) => self.converged.saturating_sub(1),
@@ -442,8 +500,6 @@ impl<const N: usize> Localizer<N> {
                         report.handoff = true;
                     }
                     _ => {
-                        let mut candidates: heapless::Vec<Candidate, SCAN_KEEP> = heapless::Vec::new();
-                        self.sweep.scan(&self.sensed, &lookup, &cfg.mcl.beam, &cfg.scan, &mut candidates);
                         self.particles.resample(&self.sensed, &lookup, &cfg.mcl, 1.0 - weight, &candidates);
                         report.injected = self.particles.injected();
                         self.particles.motion(&offset, &cfg.mcl.motion)?;
@@ -454,11 +510,28 @@ impl<const N: usize> Localizer<N> {
                             c.mean = compose(&c.mean, &self.offset);
                             c
                         });
+                        // The EKF beside the particles found its readings
+                        // again before they found anything else: a false
+                        // alarm, and the search ends.
+                        let elsewhere = self.cluster.as_ref().is_some_and(|c| {
+                            let x = self.referencer.ekf.state();
+                            let (dx, dy) = (c.mean[0] - x[0], c.mean[1] - x[1]);
+                            c.weight >= 0.5 && (dx * dx + dy * dy > 1.0 || wrap(c.mean[2] - x[2]).abs() > 0.35)
+                        });
+                        if self.ekf_awake && self.calm >= cfg.calm_cycles && !elsewhere {
+                            self.mode = Mode::Tracking;
+                            self.ekf_awake = false;
+                            self.calm = 0;
+                            self.cluster = None;
+                            self.counts.calmed += 1;
+                            report.calmed = true;
+                        }
                     }
                 }
             }
             Mode::Tracking | Mode::Lost => {
                 self.referencer.end_cycle();
+                self.calm = 0;
                 let lost = self.referencer.ekf.is_lost();
                 if lost && N > 0 {
                     report.mode = Mode::Lost;
@@ -470,6 +543,9 @@ impl<const N: usize> Localizer<N> {
                 }
             }
         }
+        // The cycle joins the history, which moves to the next cycle's frame.
+        self.history.push(&self.sensed);
+        self.history.rebase(&self.offset);
         match report.mode {
             Mode::Searching => self.counts.searching += 1,
             Mode::Tracking => self.counts.tracking += 1,
@@ -481,9 +557,61 @@ impl<const N: usize> Localizer<N> {
         Ok(report)
     }
 
+    /// Scores the scan's candidates and the heaviest cluster's mean on the
+    /// history and this cycle: a candidate ahead by the margin becomes
+    /// `verified_share` of the set.
+    /// Returns how far the cluster leads the best candidate away from it
+    /// (more than a metre or 20°), nats (`+∞` with none, `−∞` with no cluster).
+    fn verify(
+        &self,
+        candidates: &mut heapless::Vec<Candidate, SCAN_KEEP>,
+        cluster: Option<&Cluster>,
+        lookup: &FieldLookup<'_, '_>,
+    ) -> f32 {
+        let c = &self.cfg;
+        if candidates.is_empty() {
+            return if cluster.is_some() { f32::INFINITY } else { f32::NEG_INFINITY };
+        }
+        let extra = c.verify_sigma_mm * c.verify_sigma_mm;
+        let beam = &c.mcl.beam;
+        // Every candidate scored on the history and this cycle; the best few
+        // go on (best first), the first of them in number if it beats the
+        // heaviest cluster by the margin.
+        for cand in candidates.iter_mut() {
+            cand.score = self.history.score(&cand.pose, &self.sensed, lookup, beam, extra);
+            cand.copies = 1;
+        }
+        candidates.sort_unstable_by(|a, b| b.score.total_cmp(&a.score));
+        candidates.truncate(usize::from(c.verify_keep).max(1));
+        let own = cluster.map_or(f32::NEG_INFINITY, |k| self.history.score(&k.mean, &self.sensed, lookup, beam, extra));
+        let elsewhere = |p: &[f32; 3]| {
+            cluster.is_none_or(|k| {
+                let (dx, dy) = (p[0] - k.mean[0], p[1] - k.mean[1]);
+                dx * dx + dy * dy > 1.0 || wrap(p[2] - k.mean[2]).abs() > 20.0 * core::f32::consts::PI / 180.0
+            })
+        };
+        let mut other = candidates.iter().find(|k| elsewhere(&k.pose)).map_or(f32::NEG_INFINITY, |k| k.score);
+        if self.ekf_awake {
+            // The EKF beside the particles is a hypothesis too: a cluster
+            // elsewhere must lead it as well.
+            let x = self.referencer.ekf.state();
+            if elsewhere(&x) {
+                other = other.max(self.history.score(&x, &self.sensed, lookup, beam, extra));
+            }
+        }
+        if let Some(first) = candidates.first_mut() {
+            if !self.history.is_empty() && first.score > own + c.verify_margin {
+                first.copies = ((c.verified_share * self.particles.len() as f32) as u16).max(1);
+            }
+        }
+        own - other
+    }
+
     /// The EKF starts at the cluster (at the cycle's start), then takes the
     /// cycle's odometry.
     fn handoff(&mut self, c: &Cluster, offset: &Motion) -> Result<(), LocalizeError> {
+        self.ekf_awake = false;
+        self.calm = 0;
         let f = &self.cfg.handoff_sigma_floor;
         let mut p = c.covariance;
         for (i, row) in p.iter_mut().enumerate() {
@@ -511,6 +639,8 @@ impl<const N: usize> Localizer<N> {
         let global = if lookup.field().free_nodes() == 0 { 0.0 } else { c.wake_global };
         self.particles.seed_around(lookup, N, x, sigma, global)?;
         self.mode = Mode::Searching;
+        self.ekf_awake = true;
+        self.calm = 0;
         self.converged = 0;
         self.cluster = self.particles.cluster(c.handoff_radius_m, c.handoff_angle_rad);
         self.counts.wakes += 1;
@@ -522,21 +652,31 @@ impl<const N: usize> Localizer<N> {
         self.mode
     }
 
-    /// The estimate now (x m, y m, φ rad): the EKF's, or while searching
-    /// the heaviest cluster's moved by the odometry since.
-    pub fn state(&self) -> [f32; 3] {
+    /// Whether the estimate to report is the particles' (searching, with no
+    /// EKF beside them: until they hand off, a woken search reports the
+    /// EKF's estimate, marked searching).
+    fn particles_report(&self) -> Option<&Cluster> {
         match (self.mode, &self.cluster) {
-            (Mode::Searching, Some(c)) => compose(&c.mean, &self.offset),
-            _ => self.referencer.ekf.state(),
+            (Mode::Searching, Some(c)) if !self.ekf_awake => Some(c),
+            _ => None,
         }
     }
 
-    /// Its covariance: the EKF's, or while searching the whole set's spread
-    /// about the cluster's mean (how unsure the particles are).
+    /// The estimate now (x m, y m, φ rad): the EKF's, or while searching
+    /// from no pose the heaviest cluster's moved by the odometry since.
+    pub fn state(&self) -> [f32; 3] {
+        match self.particles_report() {
+            Some(c) => compose(&c.mean, &self.offset),
+            None => self.referencer.ekf.state(),
+        }
+    }
+
+    /// Its covariance: the EKF's, or while the particles report, the whole
+    /// set's spread about their cluster's mean (how unsure they are).
     pub fn covariance(&self) -> [[f32; 3]; 3] {
-        match (self.mode, &self.cluster) {
-            (Mode::Searching, Some(c)) => c.spread,
-            _ => self.referencer.ekf.covariance(),
+        match self.particles_report() {
+            Some(c) => c.spread,
+            None => self.referencer.ekf.covariance(),
         }
     }
 

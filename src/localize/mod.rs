@@ -9,6 +9,7 @@
 //! | [`beam`] | [`BeamModel`]: the sonar's measurement model (hit, short, miss, random) |
 //! | [`expect`] | [`FieldLookup`]: what a transducer anywhere should hear, from the compiled map's field |
 //! | [`scan`] | [`Sweep`]: the search's proposals, every heading of a sweep of free nodes scored cheaply against the cycle's readings |
+//! | [`history`] | [`History`]: the last cycles' readings in the current frame, to verify the search's proposals on |
 //! | [`rng`] | [`Rng`]: xoshiro128++, uniform and approximately normal draws |
 //!
 //! Everything is `f32`, allocation-free, and held by the caller: a
@@ -30,6 +31,7 @@
 
 pub mod beam;
 pub mod expect;
+pub mod history;
 pub mod localizer;
 pub mod particles;
 pub mod rng;
@@ -37,6 +39,7 @@ pub mod scan;
 
 pub use beam::BeamModel;
 pub use expect::FieldLookup;
+pub use history::History;
 pub use localizer::{CycleReport, LocalizeError, Localizer, LocalizerConfig, LocalizerCounts, Mode, Start, MAX_SENSED};
 pub use particles::{kld_bound, Cluster, McConfig, MotionNoise, ParticleError, ParticleSet, Sensed, Weighed};
 pub use rng::Rng;

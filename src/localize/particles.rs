@@ -105,7 +105,7 @@ impl McConfig {
     /// Settings for a Pioneer-class robot and ring (`docs/localization.md`).
     pub const DEFAULT: Self = Self {
         beam: BeamModel::DEFAULT,
-        temper: 0.5,
+        temper: 1.0,
         ess_target: 0.1,
         min_temper: 0.02,
         spread_max_m: 0.2,
@@ -397,7 +397,7 @@ impl<const N: usize> ParticleSet<N> {
 
     /// The sum of the log-likelihoods of `sensed` at particle pose `p`.
     #[inline]
-    fn log_likelihood(
+    pub(crate) fn log_likelihood(
         p: &[f32; 3],
         sensed: &[Sensed],
         lookup: &FieldLookup<'_, '_>,
@@ -523,9 +523,10 @@ impl<const N: usize> ParticleSet<N> {
         self.spread_m = if spread_m.is_finite() { spread_m.max(0.0) } else { f32::INFINITY };
     }
 
-    /// The hit variance the set's spread adds, mm².
+    /// The hit variance the set's spread adds, mm²: half the spread (so
+    /// that a converging set keeps tightening), at most `spread_max_m`.
     fn extra_var(&self, cfg: &McConfig) -> f32 {
-        let s = self.spread_m.min(cfg.spread_max_m) * 1e3;
+        let s = (0.5 * self.spread_m).min(cfg.spread_max_m) * 1e3;
         s * s
     }
 
@@ -711,13 +712,22 @@ impl<const N: usize> ParticleSet<N> {
         self.injected = inject as f32 / m as f32;
         // The scan's candidates first (jittered within their node and
         // heading bin), then draws over free space.
-        let inject = inject.max(candidates.len().min(m / 10));
+        let wanted: usize = candidates.iter().map(|c| usize::from(c.copies.max(1))).sum();
+        let inject = inject.max(wanted.min(m / 2));
         self.injected = inject as f32 / m as f32;
         let first_injected = m - inject;
         let h = lookup.node_mm() * 1e-3;
         let bin = core::f32::consts::TAU / lookup.field().dirs().max(1) as f32;
-        for (k, t) in (first_injected..m).enumerate() {
-            let p = match candidates.get(k) {
+        // Candidates in order, each as many times as it has copies.
+        let mut copies = candidates.iter().flat_map(|c| core::iter::repeat_n(c, usize::from(c.copies.max(1))));
+        for t in first_injected..m {
+            let p = match copies.next() {
+                Some(c) if c.copies > 1 => {
+                    // A verified candidate: copies spread as a small cloud.
+                    let r = &mut self.rng;
+                    let (a, b, d) = (r.normal(), r.normal(), r.normal());
+                    Some([c.pose[0] + 0.05 * a, c.pose[1] + 0.05 * b, wrap(c.pose[2] + 0.5 * bin * d)])
+                }
                 Some(c) => {
                     let r = &mut self.rng;
                     let (jx, jy, jt) = (r.uniform() - 0.5, r.uniform() - 0.5, r.uniform() - 0.5);

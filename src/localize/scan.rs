@@ -27,7 +27,7 @@ pub const SCAN_READINGS: usize = 16;
 /// Headings a scan covers: the field's, when it has at most this many.
 pub const SCAN_DIRS: usize = 64;
 /// Candidates a scan keeps.
-pub const SCAN_KEEP: usize = 32;
+pub const SCAN_KEEP: usize = 256;
 
 /// The scan's settings.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -43,8 +43,8 @@ pub struct ScanConfig {
 
 impl ScanConfig {
     /// 1 024 nodes a cycle (a 400 m² map every six cycles at 250 mm
-    /// nodes), the best 32 kept, hits widened by 150 mm.
-    pub const DEFAULT: Self = Self { nodes_per_cycle: 1024, keep: 32, extra_sigma_mm: 150.0 };
+    /// nodes), the best 256 kept, hits widened by 150 mm.
+    pub const DEFAULT: Self = Self { nodes_per_cycle: 1024, keep: 255, extra_sigma_mm: 150.0 };
 }
 
 /// A proposal: a pose and its scan score (nats).
@@ -55,6 +55,8 @@ pub struct Candidate {
     pub pose: [f32; 3],
     /// The scan's log-likelihood.
     pub score: f32,
+    /// How many particles it becomes (more once verified on the history).
+    pub copies: u16,
 }
 
 /// Where the sweep is: the next node, and the stride through the nodes.
@@ -130,8 +132,9 @@ impl Sweep {
         let step = stride(nodes);
         let mut scored = 0u32;
         let mut visited = 0u32;
-        let mut worst = i32::MIN;
-        let mut best: heapless::Vec<(i32, u32, u8), SCAN_KEEP> = heapless::Vec::new();
+        // The best `keep` so far, the worst on top (a min-heap).
+        let mut best: heapless::binary_heap::BinaryHeap<(i32, u32, u8), heapless::binary_heap::Min, SCAN_KEEP> =
+            heapless::binary_heap::BinaryHeap::new();
         while scored < u32::from(cfg.nodes_per_cycle) && visited < nodes {
             let n = self.next % nodes;
             self.next = (n + step) % nodes;
@@ -165,23 +168,22 @@ impl Sweep {
                 }
                 if best.len() < keep {
                     let _ = best.push((score, n, b as u8));
-                    if best.len() == keep {
-                        worst = best.iter().map(|c| c.0).min().unwrap_or(i32::MIN);
-                    }
-                } else if score > worst {
-                    if let Some(w) = best.iter_mut().min_by_key(|c| c.0) {
-                        *w = (score, n, b as u8);
-                    }
-                    worst = best.iter().map(|c| c.0).min().unwrap_or(i32::MIN);
+                } else if best.peek().is_some_and(|w| score > w.0) {
+                    let _ = best.pop();
+                    let _ = best.push((score, n, b as u8));
                 }
             }
         }
+        let mut best = best.into_vec();
         best.sort_unstable_by(|a, b| b.0.cmp(&a.0));
         for &(score, n, b) in &best {
             if let Some((x, y)) = f.position_mm(n) {
                 let th = crate::referencing::wrap(b as f32 * core::f32::consts::TAU / dirs as f32);
-                let _ =
-                    out.push(Candidate { pose: [x as f32 * 1e-3, y as f32 * 1e-3, th], score: score as f32 / 16.0 });
+                let _ = out.push(Candidate {
+                    pose: [x as f32 * 1e-3, y as f32 * 1e-3, th],
+                    score: score as f32 / 16.0,
+                    copies: 1,
+                });
             }
         }
     }

@@ -415,6 +415,21 @@ fn run_with<const N: usize>(
         if let Some(v) = env("XP_FAST") {
             lcfg.mcl.alpha_fast = v;
         }
+        if let Some(v) = env("XP_MARGIN") {
+            lcfg.verify_margin = v;
+        }
+        if let Some(v) = env("XP_VSIG") {
+            lcfg.verify_sigma_mm = v;
+        }
+        if let Some(v) = env("XP_VSHARE") {
+            lcfg.verified_share = v;
+        }
+        if let Some(v) = env("XP_VKEEP") {
+            lcfg.verify_keep = v as u8;
+        }
+        if let Some(v) = env("XP_LEAD") {
+            lcfg.handoff_lead = v;
+        }
         if let Some(v) = env("XP_SCANN") {
             lcfg.scan.nodes_per_cycle = v as u16;
         }

@@ -1,0 +1,163 @@
+//! The last few cycles' readings, kept in the frame of the current cycle's
+//! start, so that a pose can be scored on all of them at once: what a
+//! single cycle cannot tell apart (a robot in one aisle or the next), a few
+//! metres of driving do. The search verifies its proposals on them before
+//! it lets them into the particle set in number.
+
+use super::beam::BeamModel;
+use super::expect::FieldLookup;
+use super::particles::{ParticleSet, Sensed};
+use crate::f32math::sin_cos;
+use crate::referencing::{wrap, Reading};
+
+/// Cycles kept.
+pub const HISTORY_CYCLES: usize = 8;
+/// Readings kept a cycle (the first ones that are not invalid).
+pub const HISTORY_READINGS: usize = 16;
+
+/// The readings of the last [`HISTORY_CYCLES`] cycles.
+#[derive(Clone, Copy, Debug)]
+pub struct History {
+    readings: [[Sensed; HISTORY_READINGS]; HISTORY_CYCLES],
+    counts: [u8; HISTORY_CYCLES],
+    /// The slot the next cycle goes to.
+    head: usize,
+    /// Cycles held.
+    len: usize,
+}
+
+impl Default for History {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl History {
+    /// Empty.
+    pub const fn new() -> Self {
+        const NONE: Sensed = Sensed { pose: [0.0; 3], reading: Reading::Invalid };
+        Self { readings: [[NONE; HISTORY_READINGS]; HISTORY_CYCLES], counts: [0; HISTORY_CYCLES], head: 0, len: 0 }
+    }
+
+    /// Forgets every cycle.
+    pub fn clear(&mut self) {
+        self.len = 0;
+        self.head = 0;
+        self.counts = [0; HISTORY_CYCLES];
+    }
+
+    /// Cycles held.
+    pub fn len(&self) -> usize {
+        self.len
+    }
+
+    /// Whether none are held.
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+
+    /// Keeps the cycle that just ended (its readings in its start's frame),
+    /// the oldest going when full.
+    pub fn push(&mut self, sensed: &[Sensed]) {
+        let (Some(slot), Some(count)) = (self.readings.get_mut(self.head), self.counts.get_mut(self.head)) else {
+            return;
+        };
+        let mut k = 0usize;
+        for r in sensed.iter().filter(|r| r.reading != Reading::Invalid) {
+            let Some(s) = slot.get_mut(k) else { break };
+            *s = *r;
+            k += 1;
+        }
+        *count = k as u8;
+        self.head = (self.head + 1) % HISTORY_CYCLES;
+        self.len = (self.len + 1).min(HISTORY_CYCLES);
+    }
+
+    /// Re-expresses every kept reading in the frame of the next cycle's
+    /// start, `offset` (x m, y m, φ rad) from this one's: `offset⁻¹ ⊕ pose`.
+    pub fn rebase(&mut self, offset: &[f32; 3]) {
+        let (s, c) = sin_cos(offset[2]);
+        for (cycle, &n) in self.readings.iter_mut().zip(&self.counts) {
+            for r in cycle.iter_mut().take(usize::from(n)) {
+                let (dx, dy) = (r.pose[0] - offset[0], r.pose[1] - offset[1]);
+                r.pose = [c * dx + s * dy, -s * dx + c * dy, wrap(r.pose[2] - offset[2])];
+            }
+        }
+    }
+
+    /// The log-likelihood of every kept reading, and of `current`, at pose
+    /// `p` (in the current cycle's start frame).
+    pub fn score(
+        &self,
+        p: &[f32; 3],
+        current: &[Sensed],
+        lookup: &FieldLookup<'_, '_>,
+        beam: &BeamModel,
+        extra_var_mm2: f32,
+    ) -> f32 {
+        let mut ll = ParticleSet::<0>::log_likelihood(p, current, lookup, beam, extra_var_mm2);
+        for (cycle, &n) in self.readings.iter().zip(&self.counts) {
+            if let Some(rs) = cycle.get(..usize::from(n)) {
+                ll += ParticleSet::<0>::log_likelihood(p, rs, lookup, beam, extra_var_mm2);
+            }
+        }
+        ll
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn compose(a: &[f32; 3], b: &[f32; 3]) -> [f32; 3] {
+        let (s, c) = (libm::sinf(a[2]), libm::cosf(a[2]));
+        [a[0] + c * b[0] - s * b[1], a[1] + s * b[0] + c * b[1], a[2] + b[2]]
+    }
+
+    /// A robot driving an arc: every kept reading, put back into the world
+    /// through the current true pose, lands where the transducer was.
+    #[test]
+    fn rebased_readings_stay_where_they_were_taken() {
+        let mut h = History::new();
+        let mut pose = [1.0f32, 2.0, 0.3];
+        let mut world: std::vec::Vec<[f32; 3]> = std::vec::Vec::new();
+        extern crate std;
+        for cycle in 0..12 {
+            // Two readings a cycle, the robot moving between them.
+            let start = pose;
+            let mut sensed = [Sensed { pose: [0.0; 3], reading: Reading::NoEcho }; 2];
+            for (k, s) in sensed.iter_mut().enumerate() {
+                let step = [0.1f32, 0.02, 0.05 + 0.01 * cycle as f32];
+                pose = compose(&pose, &step);
+                let mount = [0.15f32, -0.1 * k as f32, 0.5 * k as f32];
+                let t = compose(&pose, &mount);
+                world.push(t);
+                // In the cycle's start frame.
+                let (sn, cs) = (libm::sinf(start[2]), libm::cosf(start[2]));
+                let (dx, dy) = (t[0] - start[0], t[1] - start[1]);
+                s.pose = [cs * dx + sn * dy, -sn * dx + cs * dy, t[2] - start[2]];
+            }
+            h.push(&sensed);
+            // The offset from this cycle's start to the next one's.
+            let (sn, cs) = (libm::sinf(start[2]), libm::cosf(start[2]));
+            let (dx, dy) = (pose[0] - start[0], pose[1] - start[1]);
+            h.rebase(&[cs * dx + sn * dy, -sn * dx + cs * dy, pose[2] - start[2]]);
+        }
+        // Every kept reading, through the current pose (the next cycle's start).
+        let kept = HISTORY_CYCLES.min(12) * 2;
+        let mut found = 0;
+        for (cycle, &n) in h.readings.iter().zip(&h.counts) {
+            for r in cycle.iter().take(usize::from(n)) {
+                let w = compose(&pose, &r.pose);
+                assert!(
+                    world.iter().any(|t| (t[0] - w[0]).abs() < 1e-4
+                        && (t[1] - w[1]).abs() < 1e-4
+                        && wrap(t[2] - w[2]).abs() < 1e-4),
+                    "{w:?}"
+                );
+                found += 1;
+            }
+        }
+        assert_eq!(found, kept);
+    }
+}
