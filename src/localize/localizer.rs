@@ -192,6 +192,15 @@ pub struct LocalizerConfig {
     pub wake_global: f32,
     /// See `wake_global`.
     pub calm_cycles: u8,
+    /// The fit monitor (see `Localizer::monitor`): weight of a cycle in the
+    /// short-term average ...
+    pub fit_fast: f32,
+    /// ... and in the long-term one ...
+    pub fit_slow: f32,
+    /// ... the drop, nats a reading ...
+    pub fit_drop: f32,
+    /// ... for this many cycles in a row wakes the particles (0: off).
+    pub fit_cycles: u8,
 }
 
 impl LocalizerConfig {
@@ -216,6 +225,10 @@ impl LocalizerConfig {
         wake_sigma_scale: 3.0,
         wake_global: 0.3,
         calm_cycles: 3,
+        fit_fast: 0.5,
+        fit_slow: 0.02,
+        fit_drop: 0.45,
+        fit_cycles: 3,
     };
 }
 
@@ -245,6 +258,10 @@ pub struct CycleReport {
     pub lead: f32,
     /// The search ended because the EKF beside it was no longer lost.
     pub calmed: bool,
+    /// While tracking: the mean log-likelihood a reading of the cycle had
+    /// at the EKF's pose (the particles' model), and the monitor's short-
+    /// and long-term averages of it.
+    pub fit: [f32; 3],
 }
 
 /// Counts over the run.
@@ -286,6 +303,12 @@ pub struct Localizer<const N: usize> {
     /// particles; this many cycles in a row it has not been lost.
     ekf_awake: bool,
     calm: u8,
+    /// The fit monitor's short- and long-term averages, the cycles it has
+    /// seen, and the bad ones in a row (the short one below the long one by
+    /// the drop).
+    fit: (f32, f32),
+    fit_seen: u16,
+    misfit: u8,
     counts: LocalizerCounts,
 }
 
@@ -322,6 +345,9 @@ impl<const N: usize> Localizer<N> {
             history: History::new(),
             ekf_awake: false,
             calm: 0,
+            fit: (0.0, 0.0),
+            fit_seen: 0,
+            misfit: 0,
             counts: LocalizerCounts::default(),
         };
         l.start(start, field)?;
@@ -369,6 +395,8 @@ impl<const N: usize> Localizer<N> {
         self.history.clear();
         self.ekf_awake = false;
         self.calm = 0;
+        self.fit_seen = 0;
+        self.misfit = 0;
         if self.mode == Mode::Searching {
             self.cluster = self.particles.cluster(self.cfg.handoff_radius_m, self.cfg.handoff_angle_rad);
         }
@@ -442,13 +470,16 @@ impl<const N: usize> Localizer<N> {
             weighed: Weighed::default(),
             lead: 0.0,
             calmed: false,
+            fit: [0.0; 3],
         };
         match self.mode {
             Mode::Searching => {
                 let cfg = self.cfg;
                 if self.ekf_awake {
                     self.referencer.end_cycle();
-                    self.calm = if self.referencer.ekf.is_lost() { 0 } else { self.calm.saturating_add(1) };
+                    self.monitor(&lookup, &mut report);
+                    let fits = self.misfit == 0;
+                    self.calm = if self.referencer.ekf.is_lost() || !fits { 0 } else { self.calm.saturating_add(1) };
                 }
                 // The model widens with the last cluster's position spread.
                 let spread = self.cluster.map_or(f32::INFINITY, |c| {
@@ -532,7 +563,8 @@ impl<const N: usize> Localizer<N> {
             Mode::Tracking | Mode::Lost => {
                 self.referencer.end_cycle();
                 self.calm = 0;
-                let lost = self.referencer.ekf.is_lost();
+                let misfit = self.monitor(&lookup, &mut report);
+                let lost = self.referencer.ekf.is_lost() || misfit;
                 if lost && N > 0 {
                     report.mode = Mode::Lost;
                     self.wake(&lookup)?;
@@ -555,6 +587,40 @@ impl<const N: usize> Localizer<N> {
         self.dropped = 0;
         self.offset = [0.0; 3];
         Ok(report)
+    }
+
+    /// The fit monitor: the readings' mean log-likelihood at the EKF's pose
+    /// (at the cycle's start), its short- and long-term averages (augmented
+    /// MCL's, on the EKF's one hypothesis); true when the short one has
+    /// been `fit_drop` below the long one for `fit_cycles` cycles in a row:
+    /// the readings no longer fit the pose, as after a kidnap, well before
+    /// the gate's counts say so.
+    fn monitor(&mut self, lookup: &FieldLookup<'_, '_>, report: &mut CycleReport) -> bool {
+        let c = &self.cfg;
+        let k = self.sensed.iter().filter(|r| r.reading != Reading::Invalid).count();
+        if N == 0 || lookup.field().is_empty() || k < usize::from(c.handoff_min_readings) {
+            return false;
+        }
+        let now = self.referencer.ekf.state();
+        // The pose at the cycle's start: now ⊕ offset⁻¹.
+        let (s, co) = sin_cos(self.offset[2]);
+        let (ox, oy) = (-(co * self.offset[0] + s * self.offset[1]), s * self.offset[0] - co * self.offset[1]);
+        let start = compose(&now, &[ox, oy, -self.offset[2]]);
+        let fit = ParticleSet::<0>::log_likelihood(&start, &self.sensed, lookup, &c.mcl.beam, 0.0) / k as f32;
+        let (fast, slow) = self.fit;
+        let (fast, slow) = if self.fit_seen == 0 { (fit, fit) } else { (fast + c.fit_fast * (fit - fast), slow) };
+        let bad = fast < slow - c.fit_drop;
+        // The long-term average learns only from cycles that fit.
+        let slow = if bad || self.fit_seen == 0 {
+            slow
+        } else {
+            slow + c.fit_slow.max(1.0 / (self.fit_seen as f32 + 1.0)) * (fit - slow)
+        };
+        self.fit = (fast, slow);
+        self.fit_seen = self.fit_seen.saturating_add(1);
+        self.misfit = if bad { self.misfit.saturating_add(1) } else { 0 };
+        report.fit = [fit, fast, slow];
+        self.fit_seen > u16::from(c.fit_cycles) * 4 && self.misfit >= c.fit_cycles
     }
 
     /// Scores the scan's candidates and the heaviest cluster's mean on the

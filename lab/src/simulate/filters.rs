@@ -430,6 +430,12 @@ fn run_with<const N: usize>(
         if let Some(v) = env("XP_LEAD") {
             lcfg.handoff_lead = v;
         }
+        if let Some(v) = env("XP_FITDROP") {
+            lcfg.fit_drop = v;
+        }
+        if let Some(v) = env("XP_FITCYC") {
+            lcfg.fit_cycles = v as u8;
+        }
         if let Some(v) = env("XP_SCANN") {
             lcfg.scan.nodes_per_cycle = v as u16;
         }
@@ -485,8 +491,8 @@ fn run_with<const N: usize>(
             let e = truth.map_or(-1.0, |t| (f64::from(st[0]) - t[0]).hypot(f64::from(st[1]) - t[1]));
             let (ws, wf) = loc.particles().averages();
             eprintln!(
-                "t {time_s:.1} mode {:?} near {near} n {} alpha {:.3} ess {:.0} best {:.1} k {} cw {:.2} inj {:.2} slow {ws:.4} fast {wf:.4} err {e:.2} handoff {} woke {}",
-                rep.mode, rep.particles, rep.weighed.alpha, rep.weighed.ess, rep.weighed.best_ll, rep.weighed.readings, rep.cluster_weight, rep.injected, rep.handoff, rep.woke
+                "fit {:.2} {:.2} {:.2} t {time_s:.1} mode {:?} near {near} n {} alpha {:.3} ess {:.0} best {:.1} k {} cw {:.2} inj {:.2} slow {ws:.4} fast {wf:.4} err {e:.2} handoff {} woke {}",
+                rep.fit[0], rep.fit[1], rep.fit[2], rep.mode, rep.particles, rep.weighed.alpha, rep.weighed.ess, rep.weighed.best_ll, rep.weighed.readings, rep.cluster_weight, rep.injected, rep.handoff, rep.woke
             );
         }
         if rep.handoff {
