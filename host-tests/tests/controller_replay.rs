@@ -11,7 +11,9 @@
 //! - Mismatches are refused with typed errors: another map, another ring
 //!   timing, a record whose transducer the driver would not fire.
 
-use echoloc::controller::replay::{check, run, scenario_odometry, ReplayError, ReplaySetup, ReplaySummary, Score};
+use echoloc::controller::replay::{
+    check, localizer, run, scenario_odometry, ReplayError, ReplaySetup, ReplaySummary, Score,
+};
 use echoloc::credence::net::CredenceNet;
 use echoloc::driver::SpeedOfSound;
 use echoloc::map::{crc32, MapSource, MapView};
@@ -73,9 +75,20 @@ fn driver_path_equals_direct_loop_and_meets_the_bounds() {
     let bench = Bench::new(scenario, 1_000);
     check(&bench, crc32(fx.bytes()), &setup).unwrap();
     let mut via_driver = Vec::new();
-    let summary = run::<_, _, 4, 16>(&bench, &map, &mounts, &net, &setup, scenario_odometry, |c, r, rec, _| {
-        via_driver.push((r.transducer, rec.cycle, c.state()));
-    })
+    let loc = localizer::<0, 16>(&bench, &setup, map.field(), None, 1).unwrap();
+    let summary = run::<_, _, 4, 16, 0>(
+        &bench,
+        &map,
+        map.field(),
+        &mounts,
+        &net,
+        &setup,
+        loc,
+        scenario_odometry,
+        |c, r, rec, _| {
+            via_driver.push((r.transducer, rec.cycle, c.state()));
+        },
+    )
     .unwrap();
     assert!(bench.done() && bench.fault().is_none());
     assert_eq!(via_driver.len(), scenario.len());
@@ -112,12 +125,15 @@ fn driver_path_equals_direct_loop_and_meets_the_bounds() {
 fn replay(bytes: &[u8], map: &MapView<'_>, setup: &ReplaySetup<16>) -> Result<ReplaySummary, ReplayError> {
     let scenario = Scenario::parse(bytes).unwrap();
     let bench = Bench::new(scenario, 1_000);
-    run::<_, _, 4, 16>(
+    let loc = localizer::<0, 16>(&bench, setup, map.field(), None, 1)?;
+    run::<_, _, 4, 16, 0>(
         &bench,
         map,
+        map.field(),
         &mounts(&scenario),
         &CredenceNet::shipped(),
         setup,
+        loc,
         scenario_odometry,
         |_, _, _, _| {},
     )

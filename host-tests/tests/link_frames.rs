@@ -7,7 +7,7 @@
 
 use echoloc::link::frame::{encode, max_frame_len, Decoder, FrameError};
 use echoloc::link::{
-    CycleReport, FromController, ReadingReport, RxCounts, ToController, WireOutcome, WireUpdate, WireVerdict,
+    CycleReport, FromController, ReadingReport, RxCounts, ToController, WireMode, WireOutcome, WireUpdate, WireVerdict,
     PROTOCOL_VERSION,
 };
 use proptest::prelude::*;
@@ -37,7 +37,7 @@ fn reading(i: u32) -> FromController {
         update: WireUpdate::Accepted,
         pose: [i as f32, 2.0, -0.5],
         covariance: [1e-4, 0.0, 1e-6, 1e-4, 0.0, 1e-5],
-        lost: i.is_multiple_of(7),
+        mode: [WireMode::Tracking, WireMode::Searching, WireMode::Lost][(i % 3) as usize],
     })
 }
 
@@ -61,7 +61,14 @@ fn every_message_kind_round_trips() {
     let from = [
         FromController::Hello { protocol: PROTOCOL_VERSION, transducers: 16, map_crc: 0x45f2_7bc7, time_us: 0 },
         reading(3),
-        FromController::Cycle(CycleReport { cycle: 9, verdicts: [1, 2, 3, 4, 5, 6], gate: [7, 8] }),
+        FromController::Cycle(CycleReport {
+            cycle: 9,
+            verdicts: [1, 2, 3, 4, 5, 6],
+            gate: [7, 8],
+            mode: WireMode::Searching,
+            particles: 1024,
+            handoff: false,
+        }),
         FromController::Status {
             rx: RxCounts { ok: 5, crc: 1, ..RxCounts::default() },
             odometry_refused: 2,
@@ -73,7 +80,12 @@ fn every_message_kind_round_trips() {
         let got: Vec<_> = frame(&m).into_iter().filter_map(|b| rx.push::<FromController>(b)).collect();
         assert_eq!(got, [Ok(m)]);
     }
-    for m in [odometry(12), ToController::End] {
+    for m in [
+        odometry(12),
+        ToController::Search { around: None },
+        ToController::Search { around: Some(([1.0, 2.0, 0.5], [0.5, 0.5, 0.2])) },
+        ToController::End,
+    ] {
         let got: Vec<_> = frame(&m).into_iter().filter_map(|b| rx.push::<ToController>(b)).collect();
         assert_eq!(got, [Ok(m)]);
     }

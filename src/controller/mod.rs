@@ -26,11 +26,10 @@ pub use odometry::{OdometryError, OdometrySample, OdometrySync};
 
 use crate::credence::Credence;
 use crate::driver::{Outcome, RingReading};
-use crate::map::MapSource;
+use crate::localize::{self, LocalizeError, Localizer, Mode, Start};
+use crate::map::{FieldView, MapSource};
 use crate::predict::{Mount, PredictParams};
-use crate::referencing::{
-    CycleUpdates, Ekf, Motion, Reading, ReadingReport, Referencer, ReferencerError, VerdictCounts,
-};
+use crate::referencing::{CycleUpdates, Motion, Reading, ReadingReport, Referencer, ReferencerError, VerdictCounts};
 
 /// Why a reading could not be processed.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -40,6 +39,8 @@ pub enum ControllerError {
     NoSuchTransducer(u8),
     /// Prediction or the filter refused.
     Referencer(ReferencerError),
+    /// The localizer refused (non-finite odometry, a start outside the map).
+    Localize(LocalizeError),
 }
 
 impl From<ReferencerError> for ControllerError {
@@ -48,11 +49,21 @@ impl From<ReferencerError> for ControllerError {
     }
 }
 
+impl From<LocalizeError> for ControllerError {
+    fn from(e: LocalizeError) -> Self {
+        match e {
+            LocalizeError::Referencer(r) => Self::Referencer(r),
+            e => Self::Localize(e),
+        }
+    }
+}
+
 impl core::fmt::Display for ControllerError {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         match self {
             Self::NoSuchTransducer(t) => write!(f, "no mount for transducer {t}"),
             Self::Referencer(e) => write!(f, "{e:?}"),
+            Self::Localize(e) => write!(f, "{e}"),
         }
     }
 }
@@ -60,7 +71,7 @@ impl core::fmt::Display for ControllerError {
 impl core::error::Error for ControllerError {}
 
 /// A finished ring cycle.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct CycleEnd {
     /// Which cycle.
@@ -69,6 +80,9 @@ pub struct CycleEnd {
     pub verdicts: VerdictCounts,
     /// What the EKF's gate did with its readings.
     pub updates: CycleUpdates,
+    /// What the localizer did: its mode in that cycle, the particles, a
+    /// hand-off or a wake-up.
+    pub localizer: localize::CycleReport,
 }
 
 /// What one ring reading became.
@@ -112,30 +126,34 @@ pub const fn reading_of(outcome: &Outcome) -> Reading {
     }
 }
 
-/// The loop's state: the map, the ring's mounts, the credence, and the
-/// [`Referencer`] (EKF and verdicts) it drives.
+/// The loop's state: the map and its localization field, the ring's
+/// mounts, the credence, and the [`Localizer`] (EKF, verdicts and `N`
+/// particles; `N = 0`: the EKF alone) it drives.
 #[derive(Debug)]
-pub struct Controller<'a, M: ?Sized, K: ?Sized> {
+pub struct Controller<'a, M: ?Sized, K: ?Sized, const N: usize = 0> {
     map: &'a M,
+    field: &'a FieldView<'a>,
     mounts: &'a [Mount],
     params: PredictParams,
     credence: &'a K,
-    referencer: Referencer,
+    localizer: Localizer<N>,
     cycle: Option<u32>,
     counts: LoopCounts,
 }
 
-impl<'a, M: MapSource + ?Sized, K: Credence + ?Sized> Controller<'a, M, K> {
-    /// A controller over `map` for a ring whose transducer `i` sits at
-    /// `mounts[i]`.
+impl<'a, M: MapSource + ?Sized, K: Credence + ?Sized, const N: usize> Controller<'a, M, K, N> {
+    /// A controller over `map` (whose localization field is `field`) for a
+    /// ring whose transducer `i` sits at `mounts[i]`, localizing with
+    /// `localizer` (started as its maker chose).
     pub fn new(
         map: &'a M,
+        field: &'a FieldView<'a>,
         mounts: &'a [Mount],
         params: PredictParams,
         credence: &'a K,
-        referencer: Referencer,
+        localizer: Localizer<N>,
     ) -> Self {
-        Self { map, mounts, params, credence, referencer, cycle: None, counts: LoopCounts::default() }
+        Self { map, field, mounts, params, credence, localizer, cycle: None, counts: LoopCounts::default() }
     }
 
     /// One ring reading, with the odometry `u` since the previous one (in
@@ -147,11 +165,11 @@ impl<'a, M: MapSource + ?Sized, K: Credence + ?Sized> Controller<'a, M, K> {
         let mount =
             self.mounts.get(usize::from(r.transducer)).ok_or(ControllerError::NoSuchTransducer(r.transducer))?;
         let cycle_end = match self.cycle {
-            Some(c) if c != r.cycle => self.close_cycle(c),
+            Some(c) if c != r.cycle => self.close_cycle(c)?,
             _ => None,
         };
         self.cycle = Some(r.cycle);
-        self.referencer.odometry(u)?;
+        self.localizer.odometry(u)?;
         self.counts.readings += 1;
         let reading = reading_of(&r.outcome);
         match reading {
@@ -162,46 +180,59 @@ impl<'a, M: MapSource + ?Sized, K: Credence + ?Sized> Controller<'a, M, K> {
         if matches!(r.outcome, Outcome::Unconfirmed { .. } | Outcome::Crosstalk { .. }) {
             self.counts.unconfirmed += 1;
         }
-        let report = self.referencer.reading(self.map, mount, &self.params, self.credence, reading)?;
+        let report = self.localizer.reading(self.map, mount, &self.params, self.credence, reading)?;
         Ok(Step { cycle_end, reading, report })
     }
 
-    /// Restarts the filter from `ekf` (a pose the robot's computer sent, a
-    /// relocalisation); the cycle in progress and the counts go on.
-    pub fn reset(&mut self, ekf: Ekf) {
-        self.referencer.ekf = ekf;
+    /// Starts localizing again from `start` (a pose the robot's computer
+    /// sent, or a search); the cycle in progress and the counts go on.
+    pub fn restart(&mut self, start: Start) -> Result<(), ControllerError> {
+        Ok(self.localizer.start(start, self.field)?)
     }
 
     /// Closes the cycle in progress (at the end of a run).
-    pub fn finish(&mut self) -> Option<CycleEnd> {
-        let c = self.cycle.take()?;
-        self.close_cycle(c)
+    pub fn finish(&mut self) -> Result<Option<CycleEnd>, ControllerError> {
+        match self.cycle.take() {
+            Some(c) => self.close_cycle(c),
+            None => Ok(None),
+        }
     }
 
-    fn close_cycle(&mut self, cycle: u32) -> Option<CycleEnd> {
-        let (verdicts, updates) = self.referencer.end_cycle();
+    fn close_cycle(&mut self, cycle: u32) -> Result<Option<CycleEnd>, ControllerError> {
+        let localizer = self.localizer.end_cycle(self.field)?;
         self.counts.cycles += 1;
-        Some(CycleEnd { cycle, verdicts, updates })
+        Ok(Some(CycleEnd { cycle, verdicts: localizer.verdicts, updates: localizer.updates, localizer }))
     }
 
     /// The estimate: x, y (m), φ (rad).
     pub fn state(&self) -> [f32; 3] {
-        self.referencer.ekf.state()
+        self.localizer.state()
     }
 
     /// Its covariance.
     pub fn covariance(&self) -> [[f32; 3]; 3] {
-        self.referencer.ekf.covariance()
+        self.localizer.covariance()
     }
 
-    /// Whether the filter reports itself lost.
+    /// What the localizer is doing.
+    pub fn mode(&self) -> Mode {
+        self.localizer.mode()
+    }
+
+    /// Whether the localizer does not know where the robot is (lost, or
+    /// searching).
     pub fn is_lost(&self) -> bool {
-        self.referencer.ekf.is_lost()
+        self.localizer.mode() != Mode::Tracking
     }
 
-    /// The filter and its verdict counts.
+    /// The EKF and its verdict counts.
     pub fn referencer(&self) -> &Referencer {
-        &self.referencer
+        self.localizer.referencer()
+    }
+
+    /// The localizer.
+    pub fn localizer(&self) -> &Localizer<N> {
+        &self.localizer
     }
 
     /// Counts over the run.

@@ -13,9 +13,10 @@ use super::{Controller, ControllerError, OdometryError, Step};
 use crate::credence::Credence;
 use crate::driver::{ConfigError, Eeruf, ModuleConfig, NoPin, Ring, RingConfig, SpeedOfSound};
 use crate::driver::{Error as DriverError, Module, RingReading, RingTiming, Schedule, Timing};
-use crate::map::MapSource;
+use crate::localize::{LocalizeError, Localizer, LocalizerConfig, LocalizerCounts, Mode, Start};
+use crate::map::{FieldView, MapSource};
 use crate::predict::{Mount, PredictParams};
-use crate::referencing::{wrap, Ekf, EkfConfig, EkfError, Motion, Referencer, VerdictConfig};
+use crate::referencing::{wrap, EkfConfig, Motion, VerdictConfig};
 use crate::scenario::replay::{AddrLine, Bench, BenchFault, EchoLine, InitLine};
 use crate::scenario::{Record, ScenarioError};
 
@@ -32,8 +33,8 @@ pub enum ReplayError {
         /// The scenario's.
         found: u8,
     },
-    /// Its start pose was refused by the filter.
-    Start(EkfError),
+    /// Its start was refused by the localizer.
+    Start(LocalizeError),
     /// The driver fired differently from the scenario's records.
     Bench(BenchFault),
     /// The driver failed (the bench's pins cannot: kept for completeness).
@@ -65,7 +66,7 @@ impl core::fmt::Display for ReplayError {
             Self::Transducers { expected, found } => {
                 write!(f, "the scenario has {found} transducers, the ring {expected}")
             }
-            Self::Start(e) => write!(f, "start pose refused: {e:?}"),
+            Self::Start(e) => write!(f, "start refused: {e}"),
             Self::Bench(e) => write!(f, "replay: {e}"),
             Self::Driver(e) => write!(f, "driver: {e:?}"),
             Self::Stalled => f.write_str("the driver returned no reading within a slot"),
@@ -137,8 +138,12 @@ pub struct ReplaySummary {
     pub accepted: u32,
     /// Readings its gate rejected.
     pub gated: u32,
-    /// Times the filter became lost, and cycles it ended lost.
+    /// Times the EKF became lost, and cycles it ended lost.
     pub lost: (u32, u32),
+    /// The localizer's cycles by mode, its hand-offs and wake-ups.
+    pub localizer: LocalizerCounts,
+    /// Its mode at the end.
+    pub mode: Mode,
     /// The final estimate.
     pub state: [f32; 3],
 }
@@ -158,6 +163,8 @@ pub struct ReplaySetup<const N: usize> {
     pub ekf: EkfConfig,
     /// How readings are judged.
     pub verdicts: VerdictConfig,
+    /// The localizer around the filter.
+    pub localizer: LocalizerConfig,
 }
 
 impl<const N: usize> ReplaySetup<N> {
@@ -186,6 +193,7 @@ impl<const N: usize> ReplaySetup<N> {
             params,
             ekf: EkfConfig::DEFAULT,
             verdicts: VerdictConfig::POLAROID,
+            localizer: LocalizerConfig::DEFAULT,
         })
     }
 }
@@ -211,27 +219,43 @@ pub fn check<const N: usize>(bench: &Bench<'_>, map_crc: u32, setup: &ReplaySetu
         .map_err(ReplayError::Scenario)
 }
 
+/// The localizer a replay of the bench's scenario starts with, on the
+/// map's `field`: tracking from the scenario's start pose (`start: None`),
+/// or as `start` says; `seed` fixes the particles' draws.
+pub fn localizer<const P: usize, const N: usize>(
+    bench: &Bench<'_>,
+    setup: &ReplaySetup<N>,
+    field: &FieldView<'_>,
+    start: Option<Start>,
+    seed: u64,
+) -> Result<Localizer<P>, ReplayError> {
+    let h = bench.scenario().header();
+    let start = start.unwrap_or(Start::Known { pose: h.start, sigma: h.start_sigma });
+    Localizer::new(setup.localizer, setup.ekf, setup.verdicts, start, field, seed).map_err(ReplayError::Start)
+}
+
 /// Replays every record of the bench's scenario: the driver fires and times
 /// each ping, `odometry` gives the motion up to it, the controller judges it
 /// and updates the filter, and `each` sees every step (for a link, a log or
 /// a cost counter). Call [`check`] first.
 #[allow(clippy::too_many_arguments)]
-pub fn run<M, K, const A: usize, const N: usize>(
+pub fn run<M, K, const A: usize, const N: usize, const P: usize>(
     bench: &Bench<'_>,
     map: &M,
+    field: &FieldView<'_>,
     mounts: &[Mount],
     credence: &K,
     setup: &ReplaySetup<N>,
+    localizer: Localizer<P>,
     mut odometry: impl FnMut(&RingReading, &Record) -> Result<Motion, ReplayError>,
-    mut each: impl FnMut(&Controller<'_, M, K>, &RingReading, &Record, &Step),
+    mut each: impl FnMut(&Controller<'_, M, K, P>, &RingReading, &Record, &Step),
 ) -> Result<ReplaySummary, ReplayError>
 where
     M: MapSource + ?Sized,
     K: Credence + ?Sized,
 {
     let header = *bench.scenario().header();
-    let ekf = Ekf::new(header.start, header.start_sigma, setup.ekf).map_err(ReplayError::Start)?;
-    let mut controller = Controller::new(map, mounts, setup.params, credence, Referencer::new(ekf, setup.verdicts));
+    let mut controller = Controller::new(map, field, mounts, setup.params, credence, localizer);
     let addr: [AddrLine<'_, '_>; A] = core::array::from_fn(|bit| bench.addr(bit as u8));
     let module = Module::new(bench.init(), bench.echo(), addr, bench, setup.timing);
     let mut ring: BenchRing<'_, '_, A, N> = Ring::new(module, setup.schedule, setup.ring);
@@ -274,7 +298,7 @@ where
         score.add(controller.state(), record.truth);
         each(&controller, &reading, &record, &step);
     }
-    controller.finish();
+    controller.finish()?;
     let ekf = &controller.referencer().ekf;
     Ok(ReplaySummary {
         score,
@@ -283,6 +307,8 @@ where
         accepted,
         gated,
         lost: (ekf.lost_count(), ekf.cycles_lost()),
+        localizer: controller.localizer().counts(),
+        mode: controller.mode(),
         state: controller.state(),
     })
 }

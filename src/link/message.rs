@@ -6,10 +6,12 @@ use serde::{Deserialize, Serialize};
 
 use crate::controller::{CycleEnd, Step};
 use crate::driver::{Outcome, RingReading};
+use crate::localize::Mode;
 use crate::referencing::{Update, Verdict};
 
-/// The protocol version, the first byte of every frame's payload.
-pub const PROTOCOL_VERSION: u8 = 1;
+/// The protocol version, the first byte of every frame's payload. 2 since
+/// the localizer's mode replaced the lost flag (issue #27; `docs/link.md`).
+pub const PROTOCOL_VERSION: u8 = 2;
 
 /// From the robot's computer to the controller.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -34,6 +36,12 @@ pub enum ToController {
         pose: [f32; 3],
         /// Standard deviations of x, y and φ.
         sigma: [f32; 3],
+    },
+    /// Find the robot: the particles search all free space (`around:
+    /// None`), or around a pose with its standard deviations.
+    Search {
+        /// The pose (x, y m, φ rad) and its standard deviations, if any.
+        around: Option<([f32; 3], [f32; 3])>,
     },
     /// No more odometry will come: finish and report.
     End,
@@ -126,6 +134,28 @@ impl From<Option<Update>> for WireUpdate {
     }
 }
 
+/// What the localizer is doing (`localize::Mode`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum WireMode {
+    /// The particles search; the pose is not known.
+    Searching,
+    /// The EKF tracks.
+    Tracking,
+    /// The EKF says it is lost.
+    Lost,
+}
+
+impl From<Mode> for WireMode {
+    fn from(m: Mode) -> Self {
+        match m {
+            Mode::Searching => Self::Searching,
+            Mode::Tracking => Self::Tracking,
+            Mode::Lost => Self::Lost,
+        }
+    }
+}
+
 /// One reading and the estimate after it.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -150,14 +180,14 @@ pub struct ReadingReport {
     pub pose: [f32; 3],
     /// Its covariance, upper triangle: xx, xy, xφ, yy, yφ, φφ.
     pub covariance: [f32; 6],
-    /// The filter reports itself lost.
-    pub lost: bool,
+    /// What the localizer is doing (version 1 had a lost flag here).
+    pub mode: WireMode,
 }
 
 impl ReadingReport {
     /// The report of `step` for ring reading `r`, with the estimate `pose`,
-    /// covariance `p` and lost flag after it.
-    pub fn new(r: &RingReading, step: &Step, pose: [f32; 3], p: [[f32; 3]; 3], lost: bool) -> Self {
+    /// covariance `p` and the localizer's mode after it.
+    pub fn new(r: &RingReading, step: &Step, pose: [f32; 3], p: [[f32; 3]; 3], mode: Mode) -> Self {
         let prediction = step.report.prediction;
         Self {
             time_us: r.fired_at_us,
@@ -170,7 +200,7 @@ impl ReadingReport {
             update: step.report.update.into(),
             pose,
             covariance: [p[0][0], p[0][1], p[0][2], p[1][1], p[1][2], p[2][2]],
-            lost,
+            mode: mode.into(),
         }
     }
 }
@@ -186,6 +216,12 @@ pub struct CycleReport {
     pub verdicts: [u16; 6],
     /// Readings the gate tested, and accepted.
     pub gate: [u16; 2],
+    /// The localizer's mode in the cycle.
+    pub mode: WireMode,
+    /// Particles weighed (while searching).
+    pub particles: u16,
+    /// The EKF took over from the particles at its end.
+    pub handoff: bool,
 }
 
 impl From<&CycleEnd> for CycleReport {
@@ -203,6 +239,9 @@ impl From<&CycleEnd> for CycleReport {
                 n(v.inconclusive),
             ],
             gate: [c.updates.tested, c.updates.accepted],
+            mode: c.localizer.mode.into(),
+            particles: c.localizer.particles,
+            handoff: c.localizer.handoff,
         }
     }
 }

@@ -3,7 +3,7 @@
 //!
 //! | file | what it holds |
 //! |---|---|
-//! | [`message`] | the versioned messages: odometry in; per reading the outcome, prediction, κ, verdict, pose, covariance and lost flag out; cycle and link status |
+//! | [`message`] | the versioned messages: odometry in; per reading the outcome, prediction, κ, verdict, pose, covariance and the localizer's mode out; cycle (with the mode and particles) and link status |
 //! | [`frame`] | framing: `postcard` encoding, a version byte and a CRC-32, COBS between `0x00` delimiters; a decoder that drops and counts every bad frame |
 //! | [`port`] | [`Link`]: the framing over any `embedded-io` serial port, non-blocking on receive |
 //!
@@ -31,7 +31,7 @@ pub mod message;
 pub mod port;
 
 pub use message::{
-    CycleReport, FromController, ReadingReport, RxCounts, ToController, WireOutcome, WireUpdate, WireVerdict,
+    CycleReport, FromController, ReadingReport, RxCounts, ToController, WireMode, WireOutcome, WireUpdate, WireVerdict,
     PROTOCOL_VERSION,
 };
 pub use port::{Link, LinkError};

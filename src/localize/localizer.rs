@@ -27,7 +27,8 @@ use crate::map::field::FieldView;
 use crate::map::MapSource;
 use crate::predict::{Mount, PredictParams};
 use crate::referencing::{
-    wrap, Ekf, EkfConfig, EkfError, Motion, Reading, ReadingReport, Referencer, ReferencerError, Verdict, VerdictConfig,
+    wrap, CycleUpdates, Ekf, EkfConfig, EkfError, Motion, Reading, ReadingReport, Referencer, ReferencerError, Verdict,
+    VerdictConfig, VerdictCounts,
 };
 
 /// Readings a cycle holds for the particles (a ring of up to 32).
@@ -177,6 +178,9 @@ pub struct LocalizerConfig {
     /// ... and leads the search's best proposal elsewhere on the last
     /// cycles' readings by this many nats, every one of those cycles.
     pub handoff_lead: f32,
+    /// ... and the EKF's own pose, when it runs beside the particles after
+    /// a wake-up, by this many.
+    pub handoff_lead_awake: f32,
     /// The EKF's standard deviations at a hand-off are at least these.
     pub handoff_sigma_floor: [f32; 3],
     /// When the EKF is lost, particles are drawn around its estimate with
@@ -185,13 +189,18 @@ pub struct LocalizerConfig {
     /// ... or this many times its own, if larger ...
     pub wake_sigma_scale: f32,
     /// ... and this share of them over all free space. While they search,
-    /// the EKF goes on beside them; when it has not been lost for
-    /// `calm_cycles` cycles in a row and the particles hold no cluster of
-    /// half the weight elsewhere, the search ends (a false alarm costs a
-    /// few cycles, not a search).
+    /// the EKF goes on beside them (and its estimate is the one reported);
+    /// when their heaviest cluster holds half the weight within
+    /// `calm_radius_m` and `calm_angle_rad` of it, and it is not lost, for
+    /// `calm_cycles` cycles in a row, the search ends: a false alarm costs
+    /// a few cycles, and no relocation.
     pub wake_global: f32,
     /// See `wake_global`.
     pub calm_cycles: u8,
+    /// See `wake_global`, m.
+    pub calm_radius_m: f32,
+    /// See `wake_global`, rad.
+    pub calm_angle_rad: f32,
     /// The fit monitor (see `Localizer::monitor`): weight of a cycle in the
     /// short-term average ...
     pub fit_fast: f32,
@@ -220,11 +229,14 @@ impl LocalizerConfig {
         verified_share: 0.15,
         verify_keep: 16,
         handoff_lead: 25.0,
+        handoff_lead_awake: 60.0,
         handoff_sigma_floor: [0.03, 0.03, 1.0 * core::f32::consts::PI / 180.0],
         wake_sigma: [0.5, 0.5, 15.0 * core::f32::consts::PI / 180.0],
         wake_sigma_scale: 3.0,
         wake_global: 0.3,
         calm_cycles: 3,
+        calm_radius_m: 0.5,
+        calm_angle_rad: 10.0 * core::f32::consts::PI / 180.0,
         fit_fast: 0.5,
         fit_slow: 0.02,
         fit_drop: 0.45,
@@ -258,6 +270,10 @@ pub struct CycleReport {
     pub lead: f32,
     /// The search ended because the EKF beside it was no longer lost.
     pub calmed: bool,
+    /// The cycle's verdicts (none while searching with no EKF beside).
+    pub verdicts: VerdictCounts,
+    /// What the EKF's gate did with the cycle's readings.
+    pub updates: CycleUpdates,
     /// While tracking: the mean log-likelihood a reading of the cycle had
     /// at the EKF's pose (the particles' model), and the monitor's short-
     /// and long-term averages of it.
@@ -471,15 +487,15 @@ impl<const N: usize> Localizer<N> {
             lead: 0.0,
             calmed: false,
             fit: [0.0; 3],
+            verdicts: VerdictCounts::default(),
+            updates: CycleUpdates::default(),
         };
         match self.mode {
             Mode::Searching => {
                 let cfg = self.cfg;
                 if self.ekf_awake {
-                    self.referencer.end_cycle();
+                    (report.verdicts, report.updates) = self.referencer.end_cycle();
                     self.monitor(&lookup, &mut report);
-                    let fits = self.misfit == 0;
-                    self.calm = if self.referencer.ekf.is_lost() || !fits { 0 } else { self.calm.saturating_add(1) };
                 }
                 // The model widens with the last cluster's position spread.
                 let spread = self.cluster.map_or(f32::INFINITY, |c| {
@@ -518,7 +534,22 @@ impl<const N: usize> Localizer<N> {
                 self.sweep.scan(&self.sensed, &lookup, &cfg.mcl.beam, &cfg.scan, &mut candidates);
                 let lead = self.verify(&mut candidates, cluster.as_ref(), &lookup);
                 report.lead = lead;
-                let ahead = lead >= cfg.handoff_lead;
+                // While the EKF beside the particles still has its own
+                // readings (its gate's monitor does not say lost), the
+                // particles may confirm it but not move it far: a map with
+                // a near-symmetry (depot's half-turn) has an alias that can
+                // fit a few cycles better than the truth, and a fit alarm
+                // alone does not justify leaving the pose the readings
+                // validate.
+                let far = self.ekf_awake
+                    && !self.referencer.ekf.is_lost()
+                    && cluster.as_ref().is_some_and(|c| {
+                        let x = self.ekf_at_cycle_start();
+                        let (dx, dy) = (c.mean[0] - x[0], c.mean[1] - x[1]);
+                        dx * dx + dy * dy > cfg.calm_radius_m * cfg.calm_radius_m
+                            || wrap(c.mean[2] - x[2]).abs() > cfg.calm_angle_rad
+                    });
+                let ahead = lead >= cfg.handoff_lead && !far;
                 self.converged = match (weight >= cfg.handoff_weight && enough && ahead, same, weight >= 0.5) {
                     (true, true, _) => self.converged.saturating_add(1),
                     (true, false, _) => 1,
@@ -541,19 +572,28 @@ impl<const N: usize> Localizer<N> {
                             c.mean = compose(&c.mean, &self.offset);
                             c
                         });
-                        // The EKF beside the particles found its readings
-                        // again before they found anything else: a false
-                        // alarm, and the search ends.
-                        let elsewhere = self.cluster.as_ref().is_some_and(|c| {
+                        // The particles' heaviest cluster holds half the weight
+                        // where the EKF beside them is, cycle after cycle: it
+                        // was a false alarm, and the search ends (the fit
+                        // monitor takes the readings as they are now for
+                        // its long-term average).
+                        let agrees = cluster.as_ref().is_some_and(|c| {
                             let x = self.referencer.ekf.state();
-                            let (dx, dy) = (c.mean[0] - x[0], c.mean[1] - x[1]);
-                            c.weight >= 0.5 && (dx * dx + dy * dy > 1.0 || wrap(c.mean[2] - x[2]).abs() > 0.35)
+                            let p = compose(&c.mean, &self.offset);
+                            let (dx, dy) = (p[0] - x[0], p[1] - x[1]);
+                            c.weight >= 0.5
+                                && dx * dx + dy * dy <= cfg.calm_radius_m * cfg.calm_radius_m
+                                && wrap(p[2] - x[2]).abs() <= cfg.calm_angle_rad
+                                && !self.referencer.ekf.is_lost()
                         });
-                        if self.ekf_awake && self.calm >= cfg.calm_cycles && !elsewhere {
+                        self.calm = if self.ekf_awake && agrees { self.calm.saturating_add(1) } else { 0 };
+                        if self.ekf_awake && self.calm >= cfg.calm_cycles {
                             self.mode = Mode::Tracking;
                             self.ekf_awake = false;
                             self.calm = 0;
                             self.cluster = None;
+                            self.fit.1 = self.fit.0;
+                            self.misfit = 0;
                             self.counts.calmed += 1;
                             report.calmed = true;
                         }
@@ -561,7 +601,7 @@ impl<const N: usize> Localizer<N> {
                 }
             }
             Mode::Tracking | Mode::Lost => {
-                self.referencer.end_cycle();
+                (report.verdicts, report.updates) = self.referencer.end_cycle();
                 self.calm = 0;
                 let misfit = self.monitor(&lookup, &mut report);
                 let lost = self.referencer.ekf.is_lost() || misfit;
@@ -601,17 +641,15 @@ impl<const N: usize> Localizer<N> {
         if N == 0 || lookup.field().is_empty() || k < usize::from(c.handoff_min_readings) {
             return false;
         }
-        let now = self.referencer.ekf.state();
-        // The pose at the cycle's start: now ⊕ offset⁻¹.
-        let (s, co) = sin_cos(self.offset[2]);
-        let (ox, oy) = (-(co * self.offset[0] + s * self.offset[1]), s * self.offset[0] - co * self.offset[1]);
-        let start = compose(&now, &[ox, oy, -self.offset[2]]);
+        let start = self.ekf_at_cycle_start();
         let fit = ParticleSet::<0>::log_likelihood(&start, &self.sensed, lookup, &c.mcl.beam, 0.0) / k as f32;
         let (fast, slow) = self.fit;
         let (fast, slow) = if self.fit_seen == 0 { (fit, fit) } else { (fast + c.fit_fast * (fit - fast), slow) };
         let bad = fast < slow - c.fit_drop;
-        // The long-term average learns only from cycles that fit.
-        let slow = if bad || self.fit_seen == 0 {
+        // The long-term average learns from every cycle, slowly: a lasting
+        // drop shows against it for many cycles, while leaving out the bad
+        // ones would bias it to the best the place ever gave.
+        let slow = if self.fit_seen == 0 {
             slow
         } else {
             slow + c.fit_slow.max(1.0 / (self.fit_seen as f32 + 1.0)) * (fit - slow)
@@ -621,6 +659,15 @@ impl<const N: usize> Localizer<N> {
         self.misfit = if bad { self.misfit.saturating_add(1) } else { 0 };
         report.fit = [fit, fast, slow];
         self.fit_seen > u16::from(c.fit_cycles) * 4 && self.misfit >= c.fit_cycles
+    }
+
+    /// The EKF's estimate carried back to the cycle's start (where the
+    /// particles stand and the readings are expressed): now ⊕ offset⁻¹.
+    fn ekf_at_cycle_start(&self) -> [f32; 3] {
+        let now = self.referencer.ekf.state();
+        let (s, co) = sin_cos(self.offset[2]);
+        let (ox, oy) = (-(co * self.offset[0] + s * self.offset[1]), s * self.offset[0] - co * self.offset[1]);
+        compose(&now, &[ox, oy, -self.offset[2]])
     }
 
     /// Scores the scan's candidates and the heaviest cluster's mean on the
@@ -659,10 +706,12 @@ impl<const N: usize> Localizer<N> {
         let mut other = candidates.iter().find(|k| elsewhere(&k.pose)).map_or(f32::NEG_INFINITY, |k| k.score);
         if self.ekf_awake {
             // The EKF beside the particles is a hypothesis too: a cluster
-            // elsewhere must lead it as well.
-            let x = self.referencer.ekf.state();
+            // elsewhere must lead it as well, by the larger margin (it
+            // tracked until a moment ago).
+            let x = self.ekf_at_cycle_start();
             if elsewhere(&x) {
-                other = other.max(self.history.score(&x, &self.sensed, lookup, beam, extra));
+                let ekf = self.history.score(&x, &self.sensed, lookup, beam, extra);
+                other = other.max(ekf + c.handoff_lead_awake - c.handoff_lead);
             }
         }
         if let Some(first) = candidates.first_mut() {

@@ -111,7 +111,7 @@ impl Sweep {
             for (b, v) in l.iter_mut().enumerate() {
                 let e = Expected::decode(b as u8);
                 let ll = ln_fast(beam.likelihood_with(r.reading, Some(e), extra));
-                *v = (ll * 16.0).round().clamp(-127.0, 127.0) as i8;
+                *v = libm::roundf(ll * 16.0).clamp(-127.0, 127.0) as i8;
             }
             for (b, slot) in g.iter_mut().enumerate().take(dirs) {
                 let th = b as f32 * core::f32::consts::TAU / dirs as f32;

@@ -27,10 +27,12 @@ use cortex_m_semihosting::hprintln;
 use echoloc::credence::net::CredenceNet;
 use echoloc::credence::{Credence, EchoGeometry};
 use echoloc::geometry::{isqrt, Point, Segment};
+use echoloc::localize::{Localizer, Start};
 use echoloc::map::{Aligned, BlobError, Layer, MapSource, MapView};
 use echoloc::predict::{predict_ring, Pose, PredictParams, Prediction, PIONEER16};
 use echoloc::referencing::{Ekf, EkfConfig, Motion, Reading, Referencer, VerdictConfig};
 use echoloc::window::{Strategy, WindowParams};
+use qemu_mps2_an386::replay::PARTICLES;
 use qemu_mps2_an386::{
     calibrate, elapsed, exit, first_unpainted, flash_bytes, free_poses, metric, paint_free_stack, replay, stack_bounds,
     stack_high_water, start_systick, static_ram_bytes, ticks, time_rings, RingTimes,
@@ -43,6 +45,9 @@ static DEPOT: &Aligned<[u8]> = &Aligned(*include_bytes!("../depot.map"));
 /// The scenario the whole loop replays: 40 m through the depot, half the
 /// readings inconsistent with the map (`echoloc-lab simulate --seed 1`).
 static SCENARIO: &[u8] = include_bytes!("../depot.scn");
+/// The scenario the localizer must find itself in: the depot, no start pose
+/// given, and a kidnap half-way (`docs/localization.md`).
+static FIND_SCENARIO: &[u8] = include_bytes!("../depot-find.scn");
 /// Scratch RAM for the corrupted copy of the office map.
 static SCRATCH: ConstStaticCell<Aligned<[u8; 4096]>> = ConstStaticCell::new(Aligned([0; 4096]));
 
@@ -242,18 +247,38 @@ fn main() -> ! {
     }
     metric("stack_bytes", stack as u64);
     metric("ram_static_bytes", static_ram_bytes() as u64);
-    let data = OFFICE.0.len() + DEPOT.0.len() + SCENARIO.len();
+    let data = OFFICE.0.len() + DEPOT.0.len() + SCENARIO.len() + FIND_SCENARIO.len();
     metric("flash_bytes", (flash_bytes() - data) as u64);
     hprintln!("(flash_bytes is the image without its {} bytes of compiled maps and scenario)", data);
 
     // --- The whole loop: the depot scenario through the ring driver, the
     // quantised credence, the verdicts and the EKF, against its truth.
-    match replay::replay(SCENARIO, &depot, echoloc::map::crc32(&DEPOT.0), &net, &syst, per_tick) {
+    match replay::replay::<PARTICLES>(SCENARIO, &depot, echoloc::map::crc32(&DEPOT.0), &net, &syst, per_tick, None) {
         Some(r) => {
             let h = echoloc::scenario::Scenario::parse(SCENARIO).map(|s| *s.header()).ok();
             let bounds = h.map_or((0.0, 0.0), |h| (h.bound_position_m, h.bound_heading_deg));
             ok &= replay::report(&r, bounds);
+            metric("loc_tracking_insns_per_cycle", r.insns_per_cycle[0].0);
+            metric("loc_tracking_insns_per_cycle_max", r.insns_per_cycle[0].1);
         }
+        None => ok = false,
+    }
+    metric("localizer_state_bytes", core::mem::size_of::<Localizer<PARTICLES>>() as u64);
+
+    // Finding itself (issue #27): a run that starts with no pose at all and
+    // is carried away on the way, through the same loop with the particles.
+    hprintln!("find: a depot run started with no pose, with a kidnap, through the whole loop");
+    let find = replay::replay::<PARTICLES>(
+        FIND_SCENARIO,
+        &depot,
+        echoloc::map::crc32(&DEPOT.0),
+        &net,
+        &syst,
+        per_tick,
+        Some(Start::Unknown),
+    );
+    match find {
+        Some(r) => ok &= replay::report_find(&r),
         None => ok = false,
     }
 

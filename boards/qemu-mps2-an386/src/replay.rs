@@ -7,8 +7,9 @@
 
 use cortex_m::peripheral::SYST;
 use cortex_m_semihosting::hprintln;
-use echoloc::controller::replay::{check, run, scenario_odometry, ReplaySetup, ReplaySummary};
+use echoloc::controller::replay::{check, localizer, run, scenario_odometry, ReplaySetup, ReplaySummary};
 use echoloc::credence::net::CredenceNet;
+use echoloc::localize::{Mode, Start};
 use echoloc::map::{MapSource, MapView};
 use echoloc::predict::{Mount, PredictParams};
 use echoloc::scenario::replay::Bench;
@@ -19,6 +20,8 @@ use crate::{elapsed, first_unpainted, paint_free_stack, stack_bounds, ticks};
 
 /// Transducers the board's ring has (a Pioneer ring: 4 address lines).
 pub const TRANSDUCERS: usize = 16;
+/// Particles the board's localizer holds (issue #27: 1 024).
+pub const PARTICLES: usize = 1024;
 /// How far the bench's clock moves at a wait during a ping with no edge
 /// due sooner, µs: the poll timer of a board that also wakes on the edge.
 pub const POLL_STEP_US: u32 = 1_000;
@@ -73,6 +76,10 @@ pub struct BoardReplay {
     pub summary: ReplaySummary,
     /// Instructions per reading (driver, prediction, verdict, EKF), mean and worst.
     pub insns_per_reading: (u64, u64),
+    /// Instructions of a whole ring cycle, mean and worst, over the cycles
+    /// that ended tracking and over those that ended searching (the reading
+    /// that closes a cycle carries its end: the particles' update).
+    pub insns_per_cycle: [(u64, u64); 2],
     /// Stack the loop used, bytes.
     pub stack_bytes: usize,
 }
@@ -80,13 +87,14 @@ pub struct BoardReplay {
 /// Replays `bytes` (a scenario made on the map whose blob has CRC
 /// `map_crc`), printing what it finds. `None`, with a FAIL line, when the
 /// scenario is refused or the loop stops on an error.
-pub fn replay(
+pub fn replay<const P: usize>(
     bytes: &[u8],
     map: &MapView<'_>,
     map_crc: u32,
     net: &CredenceNet<'_>,
     syst: &Option<SYST>,
     per_tick: u32,
+    start: Option<Start>,
 ) -> Option<BoardReplay> {
     let scenario = match Scenario::parse(bytes) {
         Ok(s) => s,
@@ -124,12 +132,27 @@ pub fn replay(
     let (_, bottom) = stack_bounds();
     let sp = paint_free_stack(bottom);
     let (mut total, mut worst) = (0u64, 0u64);
+    // Per mode: cycles, their instructions, the worst one; and the cycle in progress.
+    let mut cycles = [(0u64, 0u64, 0u64); 2];
+    let mut in_cycle = 0u64;
     let mut t0 = ticks(syst);
-    let result = run_loop(&bench, map, &mounts, net, &setup, &mut |_| {
+    let result = run_loop::<P>(&bench, map, &mounts, net, &setup, start, &mut |_, ended| {
         let t = ticks(syst);
         let n = u64::from(elapsed(t0, t)) * u64::from(per_tick);
         total += n;
         worst = worst.max(n);
+        // The reading that closed a cycle paid for its end: the cycle so
+        // far, plus this reading, is that cycle's cost.
+        if let Some(mode) = ended {
+            let k = usize::from(mode == Mode::Searching);
+            if let Some(c) = cycles.get_mut(k) {
+                let cost = in_cycle + n;
+                *c = (c.0 + 1, c.1 + cost, c.2.max(cost));
+            }
+            in_cycle = 0;
+        } else {
+            in_cycle += n;
+        }
         // The callback's own cost is left out of the next reading.
         t0 = ticks(syst);
     });
@@ -142,22 +165,30 @@ pub fn replay(
         }
     };
     let n = u64::from(summary.score.readings.max(1));
-    Some(BoardReplay { summary, insns_per_reading: (total / n, worst), stack_bytes })
+    let per = |c: (u64, u64, u64)| (c.1 / c.0.max(1), c.2);
+    Some(BoardReplay {
+        summary,
+        insns_per_reading: (total / n, worst),
+        insns_per_cycle: [per(cycles[0]), per(cycles[1])],
+        stack_bytes,
+    })
 }
 
 /// The loop itself, never inlined, so that its frames lie below the
 /// caller's painted stack pointer.
 #[inline(never)]
-fn run_loop(
+fn run_loop<const P: usize>(
     bench: &Bench<'_>,
     map: &MapView<'_>,
     mounts: &[Mount],
     net: &CredenceNet<'_>,
     setup: &ReplaySetup<TRANSDUCERS>,
-    tick: &mut dyn FnMut(u32),
+    start: Option<Start>,
+    tick: &mut dyn FnMut(u32, Option<Mode>),
 ) -> Result<ReplaySummary, echoloc::controller::replay::ReplayError> {
-    run::<_, _, 4, TRANSDUCERS>(bench, map, mounts, net, setup, scenario_odometry, |c, _, _, _| {
-        tick(c.counts().readings)
+    let loc = localizer::<P, TRANSDUCERS>(bench, setup, map.field(), start, 1)?;
+    run::<_, _, 4, TRANSDUCERS, P>(bench, map, map.field(), mounts, net, setup, loc, scenario_odometry, |c, _, _, s| {
+        tick(c.counts().readings, s.cycle_end.map(|e| e.localizer.mode))
     })
 }
 
@@ -215,4 +246,38 @@ pub fn report(r: &BoardReplay, bounds: (f32, f32)) -> bool {
         );
     }
     s.passed
+}
+
+/// Prints what the localizer did on a run it had to find itself in, and its
+/// metrics; true when it ends tracking within 0.3 m and 10° of the truth,
+/// having handed off to the EKF at least twice and woken at least once (it
+/// found itself, was carried, noticed, and found itself again).
+pub fn report_find(r: &BoardReplay) -> bool {
+    let s = &r.summary;
+    let l = &s.localizer;
+    hprintln!(
+        "find: {} cycles searching, {} tracking, {} lost; {} hand-offs, {} wake-ups, {} searches ended by the EKF; final mode {}",
+        l.searching,
+        l.tracking,
+        l.lost,
+        l.handoffs,
+        l.wakes,
+        l.calmed,
+        s.mode.name()
+    );
+    hprintln!("find: final error {} m and {} deg", Fixed6(s.score.final_position_m), Fixed6(s.score.final_heading_deg));
+    crate::metric("loc_search_insns_per_cycle", r.insns_per_cycle[1].0);
+    crate::metric("loc_search_insns_per_cycle_max", r.insns_per_cycle[1].1);
+    crate::metric("find_stack_bytes", r.stack_bytes as u64);
+    let ok = s.mode == Mode::Tracking
+        && s.score.final_position_m <= 0.3
+        && s.score.final_heading_deg <= 10.0
+        && l.handoffs >= 2
+        && l.wakes >= 1;
+    if ok {
+        hprintln!("find: found itself, was carried, noticed, and found itself again");
+    } else {
+        hprintln!("FAIL: the localizer did not find itself again (see the lines above)");
+    }
+    ok
 }

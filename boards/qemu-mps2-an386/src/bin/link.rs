@@ -3,7 +3,7 @@
 //! driver, as in `--bin replay`, but the odometry comes from the robot's
 //! computer over UART0 (framed [`ToController::Odometry`] messages), and for
 //! every reading the controller sends back its outcome, prediction, κ,
-//! verdict, pose, covariance and lost flag ([`FromController::Reading`]),
+//! verdict, pose, covariance and the localizer's mode ([`FromController::Reading`]),
 //! a [`FromController::Cycle`] per ring cycle, and at the end the link's
 //! [`FromController::Status`] (frames taken and dropped, by cause).
 //!
@@ -19,7 +19,7 @@ use core::cell::RefCell;
 
 use cortex_m_rt::entry;
 use cortex_m_semihosting::hprintln;
-use echoloc::controller::replay::{check, run, ReplayError};
+use echoloc::controller::replay::{check, localizer, run, ReplayError};
 use echoloc::controller::{OdometryError, OdometrySample, OdometrySync};
 use echoloc::credence::net::CredenceNet;
 use echoloc::link::{CycleReport, FromController, Link, ReadingReport, ToController, PROTOCOL_VERSION};
@@ -27,7 +27,7 @@ use echoloc::map::{Aligned, MapView};
 use echoloc::predict::Mount;
 use echoloc::scenario::replay::Bench;
 use echoloc::scenario::Scenario;
-use qemu_mps2_an386::replay::{self, Fixed6, POLL_STEP_US, TRANSDUCERS};
+use qemu_mps2_an386::replay::{self, Fixed6, PARTICLES, POLL_STEP_US, TRANSDUCERS};
 use qemu_mps2_an386::uart::Uart0;
 use qemu_mps2_an386::{calibrate, exit, start_systick};
 
@@ -78,12 +78,21 @@ fn main() -> ! {
     let odometry = RefCell::new(OdometrySync::<16>::new());
     let refused = core::cell::Cell::new(0u32);
     let net = CredenceNet::shipped();
-    let result = run::<_, _, 4, TRANSDUCERS>(
+    let loc = match localizer::<PARTICLES, TRANSDUCERS>(&bench, &setup, map.field(), None, 1) {
+        Ok(l) => l,
+        Err(e) => {
+            hprintln!("FAIL: {}", e);
+            exit(false);
+        }
+    };
+    let result = run::<_, _, 4, TRANSDUCERS, PARTICLES>(
         &bench,
         &map,
+        map.field(),
         &mounts,
         &net,
         &setup,
+        loc,
         |reading, _| {
             // Odometry up to the firing: read the link until a sample at or
             // after it has come (never more: the rest waits in QEMU's socket).
@@ -100,8 +109,8 @@ fn main() -> ! {
                         }
                     }
                     Ok(Some(ToController::End)) => return Err(ReplayError::Odometry(OdometryError::NotYet)),
-                    // A replay starts where its scenario says; the STM32 board takes it.
-                    Ok(Some(ToController::SetPose { .. })) => {}
+                    // A replay starts where its scenario says; the STM32 board takes these.
+                    Ok(Some(ToController::SetPose { .. } | ToController::Search { .. })) => {}
                     Ok(None) | Err(_) => {}
                 }
             }
@@ -112,8 +121,7 @@ fn main() -> ! {
             if let Some(end) = &step.cycle_end {
                 let _ = l.send(&FromController::Cycle(CycleReport::from(end)));
             }
-            let _ =
-                l.send(&FromController::Reading(ReadingReport::new(r, step, c.state(), c.covariance(), c.is_lost())));
+            let _ = l.send(&FromController::Reading(ReadingReport::new(r, step, c.state(), c.covariance(), c.mode())));
         },
     );
     let mut l = link.borrow_mut();

@@ -44,7 +44,15 @@ fn main() -> ! {
     };
     let Some(bytes) = replay::scenario_partition() else { exit(false) };
     let net = CredenceNet::shipped();
-    let ok = match replay::replay(bytes, &map, echoloc::map::crc32(&DEPOT.0), &net, &syst, per_tick) {
+    let ok = match replay::replay::<{ replay::PARTICLES }>(
+        bytes,
+        &map,
+        echoloc::map::crc32(&DEPOT.0),
+        &net,
+        &syst,
+        per_tick,
+        None,
+    ) {
         Some(r) => {
             let h = Scenario::parse(bytes).map(|s| *s.header()).ok();
             replay::report(&r, h.map_or((0.0, 0.0), |h| (h.bound_position_m, h.bound_heading_deg)))
