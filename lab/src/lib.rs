@@ -8,6 +8,7 @@
 //! |---|---|
 //! | [`map`] | import ROS map_server grids ([`map::ros`]) and GeoJSON ([`map::geojson`]) into convex, buffered polygons; compile the firmware's map blob ([`map::import`], [`map::build_map`]); inspect, export, preview |
 //! | [`ring`] | rings: `pioneer16` or a JSON file of transducer mounts |
+//! | [`bag`] | ROS 2 bags (rosbag2 MCAP) read as a log: ranges, the ring from `/tf_static`, odometry, a reference (`docs/bags.md`) |
 //! | [`log`] | the plain CSV log a robot's logger writes (`docs/log.md`): read with line-numbered errors, write |
 //! | [`replay`] | a log through prediction, verdicts, the threshold method and the EKF; `echoloc-lab replay` |
 //! | [`scenario`] | binary scenarios for the boards (`docs/scenario.md`): replay on the host, convert a log |
@@ -45,6 +46,7 @@
 //! The small host program `examples/verdicts.rs` does this from the command
 //! line: `cargo run -p echoloc-lab --example verdicts -- MAP x,y,θ R0,R1,…`.
 
+pub mod bag;
 pub mod bench;
 pub mod credence;
 pub mod link;

@@ -5,7 +5,7 @@
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
-use echoloc_lab::{bench, credence, link, map, predict, replay, scenario, simulate, LabError};
+use echoloc_lab::{bag, bench, credence, link, map, predict, replay, scenario, simulate, LabError};
 
 #[derive(Parser)]
 #[command(name = "echoloc-lab", version, about = "echoloc's lab tool: maps, windows, prediction, credence")]
@@ -29,6 +29,8 @@ enum Cmd {
     Simulate(simulate::SimulateArgs),
     /// A robot's log (CSV, docs/log.md) through prediction, verdicts, the threshold method and the EKF.
     Replay(replay::ReplayArgs),
+    /// Logs: a ROS 2 bag written as the plain CSV log (docs/log.md, docs/bags.md).
+    Log(bag::cli::LogArgs),
     /// Scenario files: replay one on the host through the same filters, or convert a robot's log into one.
     Scenario(scenario::ScenarioArgs),
     /// Benchmarks: echoloc against ray fans on grids and polygons, per window, with completeness and memory.
@@ -78,6 +80,7 @@ fn run(cmd: Cmd) -> Result<String, LabError> {
         Cmd::Synth(a) => credence::synth_cmd(&a).map_err(|e| LabError(e.to_string())),
         Cmd::Simulate(a) => simulate::simulate_cmd(&a),
         Cmd::Replay(a) => replay::replay_cmd(&a),
+        Cmd::Log(a) => bag::cli::log_cmd(&a),
         Cmd::Scenario(a) => scenario::run(a),
         Cmd::Link(a) => link::link_cmd(&a),
         Cmd::Bench(a) => bench::bench_cmd(&a),

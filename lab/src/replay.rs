@@ -23,11 +23,19 @@ pub struct ReplayArgs {
     #[arg(long)]
     pub map: PathBuf,
     /// The log: CSV, one row per reading (docs/log.md).
+    #[arg(long, required_unless_present = "bag", conflicts_with = "bag")]
+    pub log: Option<PathBuf>,
+    /// A ROS 2 bag instead of a log: a rosbag2 directory (metadata.yaml) or
+    /// an .mcap file (docs/bags.md).
     #[arg(long)]
-    pub log: PathBuf,
-    /// The ring: pioneer16, or a JSON file of [x_m, y_m, heading_deg] per transducer.
-    #[arg(long, default_value = "pioneer16")]
-    pub ring: String,
+    pub bag: Option<PathBuf>,
+    /// The bag's topics (with --bag).
+    #[command(flatten)]
+    pub topics: crate::bag::cli::BagTopics,
+    /// The ring: pioneer16, or a JSON file of [x_m, y_m, heading_deg] per
+    /// transducer (default pioneer16; with --bag, the bag's /tf_static).
+    #[arg(long)]
+    pub ring: Option<String>,
     /// Where the robot starts in the map, x_m,y_m,θ_deg (default: the first
     /// reference pose, else the first odometry pose).
     #[arg(long = "initial-pose", allow_hyphen_values = true)]
@@ -121,12 +129,21 @@ pub fn replay_cmd(a: &ReplayArgs) -> Result<String, LabError> {
         check_writable(&error_plot_path(p))?;
     }
     let given = a.initial_pose.as_deref().map(|s| parse_pose(s, "--initial-pose")).transpose()?;
-    let mounts = ring_mounts(&a.ring)?;
-    let log = crate::log::read_file(&a.log, mounts.len())?;
+    let (mounts, log, source, bag) = match (&a.log, &a.bag) {
+        (_, Some(b)) => {
+            let bag = crate::bag::cli::load(b, &a.topics, a.ring.as_deref())?;
+            (bag.ring.clone(), Log { rows: bag.rows.clone() }, b, Some(bag))
+        }
+        (Some(l), None) => {
+            let mounts = ring_mounts(a.ring.as_deref().unwrap_or("pioneer16"))?;
+            (mounts.clone(), crate::log::read_file(l, mounts.len())?, l, None)
+        }
+        (None, None) => return Err(LabError("give --log or --bag".into())),
+    };
     let (map, _) = load_map_and_blob(&a.map, a.buffer_mm)?;
     let steps = steps_of_log(&log);
     let trace = filters::run(&map, &mounts, &start(&log, given), &steps, &mut |_| {})
-        .map_err(|e| LabError(format!("{}: {e}", a.log.display())))?;
+        .map_err(|e| LabError(format!("{}: {e}", source.display())))?;
     let mut r = report(&trace, None);
     if let Some(o) = r.as_object_mut() {
         o.insert(
@@ -137,6 +154,9 @@ pub fn replay_cmd(a: &ReplayArgs) -> Result<String, LabError> {
                 "cycles": steps.last().map_or(0, |s| s.cycle + 1),
             }),
         );
+        if let Some(bag) = &bag {
+            o.insert("bag".into(), crate::bag::cli::summary(bag));
+        }
     }
     if let Some(p) = &a.plot {
         let (paths, errors) = figures::draw(&map, &[], &trace);
