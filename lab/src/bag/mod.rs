@@ -531,6 +531,7 @@ pub fn from_messages(m: &Messages, o: &Options) -> Result<Bag, BagError> {
         return Err(BagError::MixedRanges);
     }
     used.ranges = range_topics.iter().map(|s| s.to_string()).collect();
+    used.ranges.sort_by_key(|t| frame_order(t));
     used.ranges_type = if cloud { types::POINT_CLOUD } else { types::RANGE }.into();
 
     // The readings.
