@@ -64,7 +64,7 @@ fn flatten(v: &Value, at: String, out: &mut Vec<(String, Value)>) {
 }
 
 /// The bag replays to the figures of the oracle's log, every key.
-fn same_as_oracle(form: &str, bag_arg: impl Fn(&Path) -> PathBuf) -> Value {
+fn same_as_oracle(form: &str, bag_arg: impl Fn(&Path) -> PathBuf, rmse_m: f64) -> Value {
     let (bag, expected) = write_bag(form, form, None);
     let map = shared_map("depot.yaml");
     let by_bag = run_json(&["replay", "--json", "--map", s(&map), "--bag", s(&bag_arg(&bag))]);
@@ -77,14 +77,14 @@ fn same_as_oracle(form: &str, bag_arg: impl Fn(&Path) -> PathBuf) -> Value {
         assert_eq!(got, v, "{form}: {k} differs between the bag and the oracle's log");
     }
     // The figures are a run's: the EKF tracked, readings were judged.
-    assert!(by_bag["ekf"]["position_rmse_m"].as_f64().unwrap() < 0.1, "{by_bag}");
+    assert!(by_bag["ekf"]["position_rmse_m"].as_f64().unwrap() < rmse_m, "{by_bag}");
     assert!(by_bag["verdicts"]["confirmed"].as_u64().unwrap() > 100, "{by_bag}");
     by_bag
 }
 
 #[test]
 fn range_per_transducer_with_tf_static_odometry_and_ground_truth() {
-    let v = same_as_oracle("range", Path::to_path_buf);
+    let v = same_as_oracle("range", Path::to_path_buf, 0.1);
     let t = &v["bag"]["topics"];
     assert_eq!(t["odometry"], "/odom");
     assert_eq!(t["reference"], "/ground_truth");
@@ -103,7 +103,7 @@ fn range_per_transducer_with_tf_static_odometry_and_ground_truth() {
 #[test]
 fn one_range_topic_by_frame_tf_odometry_amcl_reference_bare_mcap() {
     // The bare .mcap inside the directory, without its metadata.yaml.
-    let v = same_as_oracle("frame", |dir| dir.join("frame.mcap"));
+    let v = same_as_oracle("frame", |dir| dir.join("frame.mcap"), 0.1);
     let t = &v["bag"]["topics"];
     assert_eq!(t["ranges"], serde_json::json!(["/sonar_ranges"]));
     assert_eq!(t["odometry"], "/tf (odom -> base_link)");
@@ -112,7 +112,9 @@ fn one_range_topic_by_frame_tf_odometry_amcl_reference_bare_mcap() {
 
 #[test]
 fn rosaria_point_cloud() {
-    let v = same_as_oracle("cloud", Path::to_path_buf);
+    // The whole ring at its cycle's first firing, as RosAria stamps it: the
+    // robot moves up to 0.6 s within a cycle, so the EKF tracks less well.
+    let v = same_as_oracle("cloud", Path::to_path_buf, 0.2);
     assert_eq!(v["bag"]["topics"]["ranges_type"], "sensor_msgs/msg/PointCloud");
     assert!(v["bag"]["no_echo"]["beyond_max_range"].as_u64().unwrap() > 0, "the 5 m points are no echo: {v}");
 }
@@ -131,11 +133,12 @@ fn log_from_bag_writes_the_oracles_log_and_converts_for_the_board() {
     let ours = echoloc_lab::log::read(&std::fs::read_to_string(&out).unwrap(), 16).unwrap();
     let oracle = echoloc_lab::log::read(&std::fs::read_to_string(&expected).unwrap(), 16).unwrap();
     assert_eq!(ours.rows.len(), oracle.rows.len());
+    // Times, transducers, ranges and positions exactly; headings through a
+    // quaternion and back (sin/cos, then atan2) within 1e-12 rad.
+    let close = |p: [f64; 3], q: [f64; 3]| p[0] == q[0] && p[1] == q[1] && (p[2] - q[2]).abs() < 1e-12;
     for (a, b) in ours.rows.iter().zip(&oracle.rows) {
-        assert_eq!(
-            (a.time_s, a.transducer, a.range_mm, a.odometry, a.reference),
-            (b.time_s, b.transducer, b.range_mm, b.odometry, b.reference)
-        );
+        assert_eq!((a.time_s, a.transducer, a.range_mm), (b.time_s, b.transducer, b.range_mm));
+        assert!(close(a.odometry, b.odometry) && close(a.reference.unwrap(), b.reference.unwrap()), "{a:?} {b:?}");
     }
     let scn = tmp("bag", "from-bag.scn");
     let map = root().join("boards/qemu-mps2-an386/depot.map");

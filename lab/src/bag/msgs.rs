@@ -192,7 +192,7 @@ mod tests {
         b.extend(b"sonar_3\0");
         b.push(0); // radiation_type ULTRASOUND, offset 20
         b.extend([0, 0, 0]); // pad to 24 for the f32s
-        for v in [0.5236f32, 0.1, 5.0, 1.25] {
+        for v in [0.5f32, 0.1, 5.0, 1.25] {
             b.extend(v.to_le_bytes());
         }
         let r: Range = decode(&b).unwrap();
