@@ -17,6 +17,7 @@
 //! | [`credence`] | the credence net's data, training and quantisation |
 //! | [`bench`](mod@bench) | echoloc against ray fans on grids and polygons |
 //! | [`link`] | the host link to a controller |
+//! | [`figure`] | every figure, drawn with `plotters` as PNG or SVG in the shipped DejaVu Sans |
 //!
 //! Compile a robot's ROS map into the blob the firmware reads (a `build.rs`
 //! can do this; `examples/map-at-build-time` does), then predict a ring and
@@ -49,6 +50,7 @@
 pub mod bag;
 pub mod bench;
 pub mod credence;
+pub mod figure;
 pub mod link;
 pub mod log;
 pub mod map;

@@ -46,7 +46,8 @@ pub struct ReplayArgs {
     /// One JSON object (the default prints the same, indented).
     #[arg(long)]
     pub json: bool,
-    /// Writes the map with the paths to OUT.png and the error over time to OUT-error.png.
+    /// Writes the map with the paths to OUT.png and the error over time to
+    /// OUT-error.png (SVG for OUT.svg).
     #[arg(long)]
     pub plot: Option<PathBuf>,
 }
@@ -159,7 +160,7 @@ pub fn replay_cmd(a: &ReplayArgs) -> Result<String, LabError> {
         }
     }
     if let Some(p) = &a.plot {
-        let (paths, errors) = figures::draw(&map, &[], &trace);
+        let (paths, errors) = figures::draw_as(&map, &[], &trace, crate::figure::Format::of(p)).map_err(LabError)?;
         write_all(&[(p.clone(), paths), (error_plot_path(p), errors)])?;
     }
     Ok(if a.json { r.to_string() } else { serde_json::to_string_pretty(&r).unwrap_or_default() })

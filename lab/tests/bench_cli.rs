@@ -71,7 +71,7 @@ fn bad_arguments_are_refused() {
     for (args, expect) in [
         (vec!["bench", "--map", m, "--poses", "0"], "must be positive"),
         (vec!["bench", "--map", m, "--half-angles-deg", "95"], "each in (0, 90)"),
-        (vec!["bench", "--map", m, "--plot", "x.svg"], "must end in .png"),
+        (vec!["bench", "--map", m, "--plot", "x.jpg"], "must end in .png or .svg"),
         (vec!["bench", "--map", "/nonexistent.map"], "nonexistent"),
     ] {
         let o = lab().args(&args).output().unwrap();

@@ -192,8 +192,8 @@ pub fn bench_cmd(a: &BenchArgs) -> Result<String, LabError> {
         return Err(LabError("--half-angles-deg: each in (0, 90)".into()));
     }
     if let Some(p) = &a.plot {
-        if p.extension().is_none_or(|e| e != "png") {
-            return Err(LabError(format!("--plot {}: must end in .png", p.display())));
+        if p.extension().is_none_or(|e| e != "png" && e != "svg") {
+            return Err(LabError(format!("--plot {}: must end in .png or .svg", p.display())));
         }
     }
     let results = a
@@ -203,7 +203,7 @@ pub fn bench_cmd(a: &BenchArgs) -> Result<String, LabError> {
         .map(|(i, m)| bench_map(m, a, if i == 0 { a.export_windows.as_deref() } else { None }))
         .collect::<Result<Vec<_>, _>>()?;
     if let Some(p) = &a.plot {
-        let png = plot::scaling(&results);
+        let png = plot::scaling_as(&results, crate::figure::Format::of(p)).map_err(LabError)?;
         std::fs::write(p, png).map_err(|e| LabError(format!("--plot {}: {e}", p.display())))?;
     }
     let v =

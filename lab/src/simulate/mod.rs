@@ -47,7 +47,8 @@ pub struct SimulateArgs {
     /// One JSON object (the default prints the same, indented).
     #[arg(long)]
     json: bool,
-    /// Writes the map with the paths to OUT.png and the error over time to OUT-error.png.
+    /// Writes the map with the paths to OUT.png and the error over time to
+    /// OUT-error.png (SVG for OUT.svg).
     #[arg(long)]
     plot: Option<PathBuf>,
     /// Writes the run as a binary scenario (docs/scenario.md).
@@ -151,7 +152,8 @@ pub fn simulate_cmd(a: &SimulateArgs) -> Result<String, LabError> {
         outputs.push((p.clone(), log_of(&run, &steps).into_bytes()));
     }
     if let Some(p) = &a.plot {
-        let (paths, errors) = figures::draw(&map, &run.unmapped, &trace);
+        let (paths, errors) =
+            figures::draw_as(&map, &run.unmapped, &trace, crate::figure::Format::of(p)).map_err(LabError)?;
         outputs.push((p.clone(), paths));
         outputs.push((error_plot_path(p), errors));
     }
@@ -212,10 +214,11 @@ pub fn write_all(outputs: &[(PathBuf, Vec<u8>)]) -> Result<(), LabError> {
     Ok(())
 }
 
-/// `OUT.png` → `OUT-error.png`.
+/// `OUT.png` → `OUT-error.png` (`OUT.svg` → `OUT-error.svg`).
 pub fn error_plot_path(p: &Path) -> PathBuf {
     let stem = p.file_stem().and_then(|s| s.to_str()).unwrap_or("simulate");
-    p.with_file_name(format!("{stem}-error.png"))
+    let ext = if crate::figure::Format::of(p) == crate::figure::Format::Svg { "svg" } else { "png" };
+    p.with_file_name(format!("{stem}-error.{ext}"))
 }
 
 /// The run as the firmware would see it: odometry increments in `f32` (what
