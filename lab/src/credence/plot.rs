@@ -27,9 +27,12 @@ pub fn surface_figure<'a>(title: &str, kappa: Surface<'a>) -> SurfaceFigure<'a> 
     SurfaceFigure { title: title.to_string(), kappa }
 }
 
+/// A cell of the sensor-frame panel: corners (m) and κ.
+pub type Cell = ((f64, f64), (f64, f64), f64);
+
 /// The sensor-frame panel's cells: ((x0, y0), (x1, y1)) in metres and κ, for
 /// every cell whose centre lies in the annular sector R_LO…R_HI, |θ| ≤ 45°.
-pub fn sensor_cells(kappa: Surface<'_>) -> Vec<((f64, f64), (f64, f64), f64)> {
+pub fn sensor_cells(kappa: Surface<'_>) -> Vec<Cell> {
     let mut out = Vec::new();
     let nx = (R_HI / 1000.0 / CELL_M).ceil() as i64;
     let ny = (R_HI / 1000.0 / CELL_M).ceil() as i64;

@@ -26,6 +26,9 @@ const SERIES: [(&str, [u8; 3], Option<Methods>); 4] = [
 
 const LEGEND_W: u32 = 230;
 
+/// (time s, position error m, heading error °).
+type ErrorAt = (f64, f64, f64);
+
 /// The two PNGs: paths on the map (with the outlines of `unmapped`
 /// objects, m), errors over time (against the true pose, where known).
 pub fn draw(map: &StandardMap, unmapped: &[Vec<(f64, f64)>], t: &Trace) -> (Vec<u8>, Vec<u8>) {
@@ -111,7 +114,7 @@ impl Figure for Errors<'_> {
         let t = self.0;
         let root = root.titled("Position and heading error over time", (FONT, 24)).map_err(err)?;
         let (panels, foot) = root.split_vertically(760);
-        let series: Vec<(&str, [u8; 3], Vec<(f64, f64, f64)>)> = SERIES[1..]
+        let series: Vec<(&str, [u8; 3], Vec<ErrorAt>)> = SERIES[1..]
             .iter()
             .map(|&(label, colour, m)| (label, colour, t.error_series(m.unwrap_or(Methods::Ekf))))
             .collect();
