@@ -79,9 +79,10 @@ impl Figure for Paths<'_> {
                 PathElement::new(v, rgb(CLUTTER).stroke_width(2))
             }))
             .map_err(err)?;
+        // One pixel wide: plotters joins wider polylines with mitres, which
+        // spike far out where a jittery track turns back on itself.
         for (_, colour, m) in SERIES {
-            let w = if m.is_none() { 3 } else { 2 };
-            chart.draw_series(LineSeries::new(track(self.trace, m), rgb(colour).stroke_width(w))).map_err(err)?;
+            chart.draw_series(LineSeries::new(track(self.trace, m), rgb(colour).stroke_width(1))).map_err(err)?;
         }
         let mut items: Vec<(&str, RGBColor)> = SERIES.iter().map(|&(l, c, _)| (l, rgb(c))).collect();
         items.push(("unmapped objects", rgb(CLUTTER)));
@@ -144,7 +145,7 @@ impl Figure for Errors<'_> {
                 chart
                     .draw_series(LineSeries::new(
                         s.iter().map(|e| (e.0, value(e).min(top))),
-                        rgb(*colour).stroke_width(2),
+                        rgb(*colour).stroke_width(1),
                     ))
                     .map_err(err)?;
             }
