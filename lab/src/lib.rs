@@ -17,6 +17,7 @@
 //! | [`credence`] | the credence net's data, training and quantisation |
 //! | [`bench`](mod@bench) | echoloc against ray fans on grids and polygons |
 //! | [`link`] | the host link to a controller |
+//! | [`foxglove`] | a run as a Foxglove recording (MCAP, well-known Foxglove schemas; `docs/foxglove.md`) |
 //! | [`figure`] | every figure, drawn with `plotters` as PNG or SVG in the shipped DejaVu Sans |
 //!
 //! Compile a robot's ROS map into the blob the firmware reads (a `build.rs`
@@ -51,6 +52,7 @@ pub mod bag;
 pub mod bench;
 pub mod credence;
 pub mod figure;
+pub mod foxglove;
 pub mod link;
 pub mod log;
 pub mod map;

@@ -46,6 +46,9 @@ pub struct ReplayArgs {
     /// One JSON object (the default prints the same, indented).
     #[arg(long)]
     pub json: bool,
+    /// Writes the run as a Foxglove recording (MCAP, docs/foxglove.md).
+    #[arg(long)]
+    pub mcap: Option<PathBuf>,
     /// Writes the map with the paths to OUT.png and the error over time to
     /// OUT-error.png (SVG for OUT.svg).
     #[arg(long)]
@@ -129,6 +132,9 @@ pub fn replay_cmd(a: &ReplayArgs) -> Result<String, LabError> {
         check_writable(p)?;
         check_writable(&error_plot_path(p))?;
     }
+    if let Some(p) = &a.mcap {
+        check_writable(p)?;
+    }
     let given = a.initial_pose.as_deref().map(|s| parse_pose(s, "--initial-pose")).transpose()?;
     let (mounts, log, source, bag) = match (&a.log, &a.bag) {
         (_, Some(b)) => {
@@ -159,9 +165,15 @@ pub fn replay_cmd(a: &ReplayArgs) -> Result<String, LabError> {
             o.insert("bag".into(), crate::bag::cli::summary(bag));
         }
     }
+    let mut outputs = Vec::new();
     if let Some(p) = &a.plot {
         let (paths, errors) = figures::draw_as(&map, &[], &trace, crate::figure::Format::of(p)).map_err(LabError)?;
-        write_all(&[(p.clone(), paths), (error_plot_path(p), errors)])?;
+        outputs.extend([(p.clone(), paths), (error_plot_path(p), errors)]);
     }
+    if let Some(p) = &a.mcap {
+        let rec = crate::foxglove::record(&map, &mounts, &steps, &trace, &[]).map_err(LabError)?;
+        outputs.push((p.clone(), rec.finish().map_err(LabError)?));
+    }
+    write_all(&outputs)?;
     Ok(if a.json { r.to_string() } else { serde_json::to_string_pretty(&r).unwrap_or_default() })
 }

@@ -38,6 +38,10 @@ pub struct Judged {
     pub removed: bool,
     /// The obstacle the prediction named.
     pub predicted_obstacle: Option<u16>,
+    /// The EKF's verdict (for recordings, `crate::foxglove`).
+    pub verdict: Option<Verdict>,
+    /// The predicted range, mm.
+    pub predicted_mm: Option<u32>,
 }
 
 /// Error figures of one estimate against the truth, over every reading.
@@ -95,6 +99,10 @@ pub struct Trace {
     pub duration_s: f64,
     /// The EKF's odometry calibration at the end, if it made one.
     pub calibration: Option<HeadingBias>,
+    /// Per reading: whether the EKF was lost after it.
+    pub lost: Vec<bool>,
+    /// Per reading: the EKF's position covariance after it (σ²x, σxy, σ²y; m²).
+    pub position_covariance: Vec<[f32; 3]>,
 }
 
 impl Trace {
@@ -137,6 +145,11 @@ impl Trace {
     /// The final estimate of `m`.
     pub fn final_pose(&self, m: Methods) -> Option<[f64; 3]> {
         self.track(m).last().copied()
+    }
+
+    /// Every estimate of `m`, one per reading.
+    pub fn poses(&self, m: Methods) -> &[[f64; 3]] {
+        self.track(m)
     }
 }
 
@@ -302,6 +315,8 @@ pub fn run(
             unknown: matches!(rep.verdict, Verdict::UnknownObstacle | Verdict::Unpredicted),
             removed: rep.verdict == Verdict::RemovedOrMissed,
             predicted_obstacle: rep.prediction.map(|p| p.obstacle),
+            verdict: Some(rep.verdict),
+            predicted_mm: rep.prediction.map(|p| p.range_mm),
         });
         let truth = r.truth.map(f64x3);
         if let (Some(p), Some(q)) = (prev_truth, truth) {
@@ -314,6 +329,9 @@ pub fn run(
         t.threshold.push(f64x3(thr.state()));
         let x = ekf.ekf.state();
         t.ekf.push(f64x3(x));
+        let p = ekf.ekf.covariance();
+        t.position_covariance.push([p[0][0], p[0][1], p[1][1]]);
+        t.lost.push(ekf.ekf.is_lost());
         if i % 256 == 0 {
             progress(i as f64 / steps.len().max(1) as f64);
         }

@@ -58,6 +58,9 @@ pub struct SimulateArgs {
     /// the reference: `echoloc-lab replay` on it gives this run's figures.
     #[arg(long)]
     log: Option<PathBuf>,
+    /// Writes the run as a Foxglove recording (MCAP, docs/foxglove.md).
+    #[arg(long)]
+    mcap: Option<PathBuf>,
     /// The EKF without recovery while lost, to measure what it does.
     #[arg(long = "no-recovery")]
     no_recovery: bool,
@@ -96,8 +99,13 @@ pub fn simulate_cmd(a: &SimulateArgs) -> Result<String, LabError> {
     if !(0.0..=1.0).contains(&a.inconsistent) {
         return Err(LabError(format!("--inconsistent {}: must be within 0..=1", a.inconsistent)));
     }
-    for p in
-        a.plot.iter().chain(a.plot.as_deref().map(error_plot_path).iter()).chain(a.scenario.iter()).chain(a.log.iter())
+    for p in a
+        .plot
+        .iter()
+        .chain(a.plot.as_deref().map(error_plot_path).iter())
+        .chain(a.scenario.iter())
+        .chain(a.log.iter())
+        .chain(a.mcap.iter())
     {
         check_writable(p)?;
     }
@@ -156,6 +164,10 @@ pub fn simulate_cmd(a: &SimulateArgs) -> Result<String, LabError> {
             figures::draw_as(&map, &run.unmapped, &trace, crate::figure::Format::of(p)).map_err(LabError)?;
         outputs.push((p.clone(), paths));
         outputs.push((error_plot_path(p), errors));
+    }
+    if let Some(p) = &a.mcap {
+        let rec = crate::foxglove::record(&map, &mounts, &steps, &trace, &run.unmapped).map_err(LabError)?;
+        outputs.push((p.clone(), rec.finish().map_err(LabError)?));
     }
     write_all(&outputs)?;
     Ok(if a.json { report.to_string() } else { serde_json::to_string_pretty(&report).unwrap_or_default() })
@@ -300,6 +312,7 @@ pub fn report(t: &Trace, run: Option<&SimRun>) -> Value {
             "final_position_error_m": f(|e| e.final_position_m),
             "final_heading_error_deg": f(|e| e.final_heading_deg),
             "final_pose": t.final_pose(m).map(|p| p.map(round6)),
+            "first_pose": t.poses(m).first().map(|p| p.map(round6)),
         })
     };
     let v = &t.verdicts;
