@@ -15,7 +15,12 @@ independently of echoloc, and checks it against the run's JSON report
 Prints a JSON summary; exits 1 with the reasons on any failure.
 --picture OUT.png draws what the recording shows (needs matplotlib).
 
+With --link, REPORT is what `echoloc-lab link --mcap` printed (one JSON line
+per controller message): the counts and the first and last poses are the
+controller's Reading messages'.
+
 Usage: python3 scripts/mcap-check.py RUN.mcap RUN.json [--picture OUT.png]
+       python3 scripts/mcap-check.py LINK.mcap LINK.jsonl --link
 """
 import argparse
 import json
@@ -42,8 +47,12 @@ def main():
     ap.add_argument("mcap")
     ap.add_argument("report")
     ap.add_argument("--picture")
+    ap.add_argument("--link", action="store_true", help="REPORT is the JSON lines `echoloc-lab link` printed")
     a = ap.parse_args()
-    report = json.load(open(a.report))
+    if a.link:
+        report = [json.loads(line) for line in open(a.report) if line.strip()]
+    else:
+        report = json.load(open(a.report))
     problems = []
     channels, messages = {}, {}
     last_time = -1
@@ -76,15 +85,26 @@ def main():
                     problems.append(f"{topic}: a timestamp {s} is not the log time {message.log_time}")
                     break
             messages.setdefault(topic, []).append(m)
-    n = report["readings"]
-    with_truth = report.get("log", {}).get("reference_rows", n)
-    lost = report["lost"]
-    expect = {
-        "/map": 1, "/tf": n, "/pose/ekf": n, "/pose/dead_reckoning": n, "/pose/threshold": n,
-        "/ekf/covariance": n, "/sonar": n, "/state": 1 + lost["raised"] + lost["cleared"],
-    }
-    if with_truth:
-        expect["/pose/truth"] = with_truth
+    if a.link:
+        # The controller's own messages, as `link` printed them.
+        readings = [r["Reading"] for r in report if isinstance(r, dict) and "Reading" in r]
+        n = len(readings)
+        changes = sum(1 for x, y in zip(readings, readings[1:]) if x["lost"] != y["lost"])
+        expect = {"/tf": n, "/pose/controller": n, "/ekf/covariance": n, "/sonar": n, "/state": (1 + changes) if n else 0}
+        pose_topic = "/pose/controller"
+        want = {"first_pose": readings[0]["pose"], "final_pose": readings[-1]["pose"]} if n else {}
+    else:
+        n = report["readings"]
+        with_truth = report.get("log", {}).get("reference_rows", n)
+        lost = report["lost"]
+        expect = {
+            "/map": 1, "/tf": n, "/pose/ekf": n, "/pose/dead_reckoning": n, "/pose/threshold": n,
+            "/ekf/covariance": n, "/sonar": n, "/state": 1 + lost["raised"] + lost["cleared"],
+        }
+        if with_truth:
+            expect["/pose/truth"] = with_truth
+        pose_topic = "/pose/ekf"
+        want = {"first_pose": report["ekf"]["first_pose"], "final_pose": report["ekf"]["final_pose"]}
     for topic, count in expect.items():
         got = channels.get(topic, {}).get("count", 0)
         if got != count:
@@ -92,17 +112,16 @@ def main():
     for topic in channels:
         if topic not in expect:
             problems.append(f"{topic}: a channel the run does not explain")
-    poses = messages.get("/pose/ekf", [])
+    poses = messages.get(pose_topic, [])
     ends = {}
     for key, m in (("first_pose", poses[0] if poses else None), ("final_pose", poses[-1] if poses else None)):
-        if m is None:
+        if m is None or key not in want:
             continue
         p = m["pose"]
         got = [round(p["position"]["x"], 6), round(p["position"]["y"], 6), round(yaw(p["orientation"]), 6)]
-        want = report["ekf"][key]
         ends[key] = got
-        if any(abs(x - y) > 1.5e-6 for x, y in zip(got, want)):
-            problems.append(f"EKF {key}: the recording has {got}, the JSON {want}")
+        if any(abs(x - y) > 1.5e-6 for x, y in zip(got, want[key])):
+            problems.append(f"EKF {key}: the recording has {got}, the run {want[key]}")
     print(json.dumps({"channels": channels, "ekf": ends, "problems": problems}, indent=1))
     if a.picture:
         picture(messages, a.picture)

@@ -20,7 +20,7 @@ use std::io::Cursor;
 
 use echoloc::map::{MapSource, StandardMap};
 use echoloc::predict::Mount;
-use echoloc::referencing::{Reading, Verdict};
+use echoloc::referencing::Reading;
 use serde_json::{json, Value};
 
 use crate::simulate::filters::{predict_params, Methods, Step, Trace};
@@ -227,22 +227,6 @@ fn scene(entities: Vec<Value>) -> Value {
     json!({"deletions": [], "entities": entities})
 }
 
-/// The colour of a verdict (RGBA, 0–1).
-pub fn verdict_color(v: Option<Verdict>) -> [f64; 4] {
-    match v {
-        Some(Verdict::Confirmed) => [0.0, 0.7, 0.2, 1.0],
-        Some(Verdict::UnknownObstacle) => [1.0, 0.55, 0.0, 1.0],
-        Some(Verdict::RemovedOrMissed) => [0.9, 0.1, 0.1, 1.0],
-        Some(Verdict::NothingAsPredicted) => [0.3, 0.6, 1.0, 1.0],
-        Some(Verdict::Unpredicted) => [0.55, 0.55, 0.55, 1.0],
-        _ => [0.6, 0.3, 0.8, 1.0],
-    }
-}
-
-fn verdict_name(v: Option<Verdict>) -> String {
-    v.map_or("none".into(), |v| format!("{v:?}"))
-}
-
 /// An arc at range `r` (m) about `(x, y)` from heading `a - h` to `a + h` (rad).
 fn arc(x: f64, y: f64, a: f64, h: f64, r: f64) -> Vec<(f64, f64)> {
     (0..=16).map(|k| a - h + 2.0 * h * f64::from(k) / 16.0).map(|b| (x + r * b.cos(), y + r * b.sin())).collect()
@@ -296,9 +280,7 @@ pub fn record(
     }
     rec.write("/map", "foxglove.SceneUpdate", t0, &scene(ents))?;
 
-    let w = predict_params(map.buffer_mm()).window;
-    let (r_min, r_max, half) =
-        (f64::from(w.r_min_mm) / 1000.0, f64::from(w.r_max_mm) / 1000.0, f64::from(w.half_angle_deg).to_radians());
+    let window = window_of(map.buffer_mm());
     let methods = [
         ("ekf", Some(Methods::Ekf)),
         ("dead_reckoning", Some(Methods::DeadReckoning)),
@@ -326,76 +308,184 @@ pub fn record(
         }
         rec.write("/tf", "foxglove.FrameTransforms", t, &json!({"transforms": transforms}))?;
         let Some(&x) = trace.ekf.get(i) else { continue };
-        // The 2σ ellipse of the position covariance.
-        if let Some(&[sxx, sxy, syy]) = trace.position_covariance.get(i) {
-            let (a, b, c) = (f64::from(sxx), f64::from(sxy), f64::from(syy));
-            let d = ((a - c) * (a - c) / 4.0 + b * b).sqrt();
-            let (l1, l2) = ((a + c) / 2.0 + d, ((a + c) / 2.0 - d).max(0.0));
-            let th = 0.5 * (2.0 * b).atan2(a - c);
-            let (r1, r2) = (2.0 * l1.max(0.0).sqrt(), 2.0 * l2.sqrt());
-            let pts: Vec<(f64, f64)> = (0..32)
-                .map(|k| {
-                    let u = std::f64::consts::TAU * f64::from(k) / 32.0;
-                    let (ex, ey) = (r1 * u.cos(), r2 * u.sin());
-                    (x[0] + ex * th.cos() - ey * th.sin(), x[1] + ex * th.sin() + ey * th.cos())
-                })
-                .collect();
-            let e = entity(
-                t,
-                "ekf_covariance",
-                vec![line(LINE_LOOP, &pts, 2.0, [0.0, 0.59, 0.24, 1.0])],
-                vec![("sigma_x_m", format!("{:.4}", a.sqrt())), ("sigma_y_m", format!("{:.4}", c.sqrt()))],
-            );
-            rec.write("/ekf/covariance", "foxglove.SceneUpdate", t, &scene(vec![e]))?;
-        }
-        // The sensor window at the EKF's pose, with its ranges.
-        if let Some(m) = mounts.get(usize::from(s.transducer)) {
-            let (sn, cs) = x[2].sin_cos();
-            let (mx, my) = (f64::from(m.x_mm) / 1000.0, f64::from(m.y_mm) / 1000.0);
-            let (sx, sy) = (x[0] + cs * mx - sn * my, x[1] + sn * mx + cs * my);
-            let a = x[2] + f64::from(m.heading_mdeg).to_radians() / 1000.0;
-            let mut cone = arc(sx, sy, a, half, r_max);
-            cone.extend(arc(sx, sy, a, half, r_min).into_iter().rev());
-            let j = trace.judged.get(i);
-            let verdict = j.and_then(|j| j.verdict);
-            let c = verdict_color(verdict);
-            let mut lines = vec![line(LINE_LOOP, &cone, 1.0, [0.4, 0.4, 0.4, 0.6])];
-            let predicted = j.and_then(|j| j.predicted_mm);
-            if let Some(p) = predicted {
-                lines.push(line(LINE_STRIP, &arc(sx, sy, a, half, f64::from(p) / 1000.0), 2.0, [0.2, 0.2, 0.9, 1.0]));
-            }
-            let observed = match s.reading {
-                Reading::Echo { range_mm } => Some(range_mm),
-                _ => None,
-            };
-            if let Some(o) = observed {
-                lines.push(line(LINE_STRIP, &arc(sx, sy, a, half, f64::from(o) / 1000.0), 4.0, c));
-            }
-            let e = entity(
-                t,
-                &format!("sonar/{}", s.transducer),
-                lines,
-                vec![
-                    ("transducer", s.transducer.to_string()),
-                    ("verdict", verdict_name(verdict)),
-                    ("predicted_mm", predicted.map_or("none".into(), |v| v.to_string())),
-                    ("observed_mm", observed.map_or("no echo".into(), |v| v.to_string())),
-                ],
-            );
-            rec.write("/sonar", "foxglove.SceneUpdate", t, &scene(vec![e]))?;
-        }
+        let j = trace.judged.get(i);
+        let observed = match s.reading {
+            Reading::Echo { range_mm } => Some(range_mm),
+            _ => None,
+        };
+        let verdict = j.and_then(|j| j.verdict).map(|v| format!("{v:?}"));
+        let at = At { t, pose: x, covariance: trace.position_covariance.get(i).copied() };
+        let sonar = Sonar {
+            mount: mounts.get(usize::from(s.transducer)),
+            transducer: s.transducer,
+            verdict,
+            predicted_mm: j.and_then(|j| j.predicted_mm),
+            observed_mm: observed,
+        };
+        reading_messages(&mut rec, &at, &sonar, window)?;
         // Lost or tracking, at the start and at each change.
-        let now = trace.lost.get(i).copied().unwrap_or(false);
-        if lost != Some(now) {
-            let (level, message) = if now { (3, "EKF lost") } else { (2, "EKF tracking") };
-            rec.write(
-                "/state",
-                "foxglove.Log",
-                t,
-                &json!({"timestamp": stamp(t), "level": level, "message": message, "name": "ekf", "file": "", "line": 0}),
-            )?;
-            lost = Some(now);
+        state(&mut rec, t, trace.lost.get(i).copied().unwrap_or(false), &mut lost)?;
+    }
+    Ok(rec)
+}
+
+/// The sensor window: R_min, R_max (m), half-angle (rad).
+type Window = (f64, f64, f64);
+
+fn window_of(buffer_mm: u32) -> Window {
+    let w = predict_params(buffer_mm).window;
+    (f64::from(w.r_min_mm) / 1000.0, f64::from(w.r_max_mm) / 1000.0, f64::from(w.half_angle_deg).to_radians())
+}
+
+/// When and where a reading left the filter.
+struct At {
+    t: u64,
+    pose: [f64; 3],
+    /// σ²x, σxy, σ²y.
+    covariance: Option<[f32; 3]>,
+}
+
+/// One transducer's reading.
+struct Sonar<'a> {
+    mount: Option<&'a Mount>,
+    transducer: u8,
+    /// The verdict's name (`Confirmed`, …).
+    verdict: Option<String>,
+    predicted_mm: Option<u32>,
+    observed_mm: Option<u32>,
+}
+
+/// The colour of a verdict by name (RGBA, 0–1).
+pub fn verdict_color_named(v: Option<&str>) -> [f64; 4] {
+    match v {
+        Some("Confirmed") => [0.0, 0.7, 0.2, 1.0],
+        Some("UnknownObstacle") => [1.0, 0.55, 0.0, 1.0],
+        Some("RemovedOrMissed") => [0.9, 0.1, 0.1, 1.0],
+        Some("NothingAsPredicted") => [0.3, 0.6, 1.0, 1.0],
+        Some("Unpredicted") => [0.55, 0.55, 0.55, 1.0],
+        _ => [0.6, 0.3, 0.8, 1.0],
+    }
+}
+
+/// The covariance ellipse and the sensor window of one reading.
+fn reading_messages(rec: &mut Recording, at: &At, s: &Sonar<'_>, (r_min, r_max, half): Window) -> Result<(), String> {
+    let (t, x) = (at.t, at.pose);
+    // The 2σ ellipse of the position covariance.
+    if let Some([sxx, sxy, syy]) = at.covariance {
+        let (a, b, c) = (f64::from(sxx), f64::from(sxy), f64::from(syy));
+        let d = ((a - c) * (a - c) / 4.0 + b * b).sqrt();
+        let (l1, l2) = ((a + c) / 2.0 + d, ((a + c) / 2.0 - d).max(0.0));
+        let th = 0.5 * (2.0 * b).atan2(a - c);
+        let (r1, r2) = (2.0 * l1.max(0.0).sqrt(), 2.0 * l2.sqrt());
+        let pts: Vec<(f64, f64)> = (0..32)
+            .map(|k| {
+                let u = std::f64::consts::TAU * f64::from(k) / 32.0;
+                let (ex, ey) = (r1 * u.cos(), r2 * u.sin());
+                (x[0] + ex * th.cos() - ey * th.sin(), x[1] + ex * th.sin() + ey * th.cos())
+            })
+            .collect();
+        let e = entity(
+            t,
+            "ekf_covariance",
+            vec![line(LINE_LOOP, &pts, 2.0, [0.0, 0.59, 0.24, 1.0])],
+            vec![
+                ("sigma_x_m", format!("{:.4}", a.max(0.0).sqrt())),
+                ("sigma_y_m", format!("{:.4}", c.max(0.0).sqrt())),
+            ],
+        );
+        rec.write("/ekf/covariance", "foxglove.SceneUpdate", t, &scene(vec![e]))?;
+    }
+    // The sensor window at the estimated pose, with its ranges.
+    let Some(m) = s.mount else { return Ok(()) };
+    let (sn, cs) = x[2].sin_cos();
+    let (mx, my) = (f64::from(m.x_mm) / 1000.0, f64::from(m.y_mm) / 1000.0);
+    let (sx, sy) = (x[0] + cs * mx - sn * my, x[1] + sn * mx + cs * my);
+    let a = x[2] + f64::from(m.heading_mdeg).to_radians() / 1000.0;
+    let mut cone = arc(sx, sy, a, half, r_max);
+    cone.extend(arc(sx, sy, a, half, r_min).into_iter().rev());
+    let mut lines = vec![line(LINE_LOOP, &cone, 1.0, [0.4, 0.4, 0.4, 0.6])];
+    if let Some(p) = s.predicted_mm {
+        lines.push(line(LINE_STRIP, &arc(sx, sy, a, half, f64::from(p) / 1000.0), 2.0, [0.2, 0.2, 0.9, 1.0]));
+    }
+    if let Some(o) = s.observed_mm {
+        let c = verdict_color_named(s.verdict.as_deref());
+        lines.push(line(LINE_STRIP, &arc(sx, sy, a, half, f64::from(o) / 1000.0), 4.0, c));
+    }
+    let e = entity(
+        t,
+        &format!("sonar/{}", s.transducer),
+        lines,
+        vec![
+            ("transducer", s.transducer.to_string()),
+            ("verdict", s.verdict.clone().unwrap_or_else(|| "none".into())),
+            ("predicted_mm", s.predicted_mm.map_or("none".into(), |v| v.to_string())),
+            ("observed_mm", s.observed_mm.map_or("no echo".into(), |v| v.to_string())),
+        ],
+    );
+    rec.write("/sonar", "foxglove.SceneUpdate", t, &scene(vec![e]))
+}
+
+/// A log line at the start and at each change of the lost flag.
+fn state(rec: &mut Recording, t: u64, now: bool, last: &mut Option<bool>) -> Result<(), String> {
+    if *last == Some(now) {
+        return Ok(());
+    }
+    *last = Some(now);
+    let (level, message) = if now { (3, "EKF lost") } else { (2, "EKF tracking") };
+    rec.write(
+        "/state",
+        "foxglove.Log",
+        t,
+        &json!({"timestamp": stamp(t), "level": level, "message": message, "name": "ekf", "file": "", "line": 0}),
+    )
+}
+
+/// Records what a controller sent over the link (`link --mcap`): per
+/// reading, its pose (`/pose/controller`, `/tf` map → controller), its
+/// covariance ellipse, the sensor window with its verdict, and the
+/// lost/tracking changes; stamped with the controller's clock (µs,
+/// unwrapped at 2³²). No map: the controller holds it.
+pub fn record_link(readings: &[echoloc::link::ReadingReport], mounts: &[Mount]) -> Result<Recording, String> {
+    let mut rec = Recording::new()?;
+    // The window's ranges and half-angle do not depend on the buffer.
+    let window = window_of(0);
+    let (mut epoch, mut last_us) = (0u64, readings.first().map_or(0, |r| r.time_us));
+    let mut lost = None;
+    for r in readings {
+        if r.time_us < last_us {
+            epoch += 1 << 32;
         }
+        last_us = r.time_us;
+        let t = (epoch + u64::from(r.time_us)) * 1000;
+        let p = r.pose.map(f64::from);
+        rec.write(
+            "/tf",
+            "foxglove.FrameTransforms",
+            t,
+            &json!({"transforms": [{"timestamp": stamp(t), "parent_frame_id": "map", "child_frame_id": "controller",
+                "translation": {"x": p[0], "y": p[1], "z": 0.0}, "rotation": quat(p[2])}]}),
+        )?;
+        rec.write(
+            "/pose/controller",
+            "foxglove.PoseInFrame",
+            t,
+            &json!({"timestamp": stamp(t), "frame_id": "map", "pose": pose(p)}),
+        )?;
+        let c = r.covariance;
+        let observed = match r.outcome {
+            echoloc::link::WireOutcome::Range(mm) => Some(mm),
+            _ => None,
+        };
+        let at = At { t, pose: p, covariance: Some([c[0], c[1], c[3]]) };
+        let sonar = Sonar {
+            mount: mounts.get(usize::from(r.transducer)),
+            transducer: r.transducer,
+            verdict: Some(format!("{:?}", r.verdict)),
+            predicted_mm: r.predicted_mm,
+            observed_mm: observed,
+        };
+        reading_messages(&mut rec, &at, &sonar, window)?;
+        state(&mut rec, t, r.lost, &mut lost)?;
     }
     Ok(rec)
 }
