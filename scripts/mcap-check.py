@@ -176,12 +176,22 @@ def picture(messages, out):
                 xs, ys = xs + xs[:1], ys + ys[:1]
             ax.plot(xs, ys, color=rgba(line["color"]), lw=line["thickness"] * 0.6,
                     alpha=0.5 if k == 0 else 1.0)
-        del meta
     ax.set_aspect("equal")
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
     ax.set_title("Foxglove recording, read back by PyPI's mcap: map, paths, 2σ ellipses, last sensor windows")
-    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    from matplotlib.lines import Line2D
+    handles, _ = ax.get_legend_handles_labels()
+    # The verdict colours as the recording has them (read from its sensor windows).
+    seen = {}
+    for e in last.values():
+        meta = {kv["key"]: kv["value"] for kv in e["metadata"]}
+        if meta["observed_mm"] != "no echo" and len(e["lines"]) > 1:
+            seen.setdefault(meta["verdict"], rgba(e["lines"][-1]["color"]))
+    handles += [Line2D([], [], color=c, lw=3, label=f"observed: {v}") for v, c in sorted(seen.items())]
+    handles.append(Line2D([], [], color=(0.2, 0.2, 0.9), lw=2, label="predicted range"))
+    handles.append(Line2D([], [], color=(0.4, 0.4, 0.4), lw=1, label="sensor window"))
+    ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.01, 1.0))
     fig.tight_layout()
     fig.savefig(out)
 
