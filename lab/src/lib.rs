@@ -16,6 +16,7 @@
 //! | [`predict`] | windows and ring predictions from the command line |
 //! | [`credence`] | the credence net's data, training and quantisation |
 //! | [`bench`](mod@bench) | echoloc against ray fans on grids and polygons |
+//! | [`board`] | a log or bag on the emulated board end to end: map compiled, scenario converted, QEMU run, figures beside the host's |
 //! | [`link`] | the host link to a controller |
 //! | [`foxglove`] | a run as a Foxglove recording (MCAP, well-known Foxglove schemas; `docs/foxglove.md`) |
 //! | [`figure`] | every figure, drawn with `plotters` as PNG or SVG in the shipped DejaVu Sans |
@@ -50,6 +51,7 @@
 
 pub mod bag;
 pub mod bench;
+pub mod board;
 pub mod credence;
 pub mod figure;
 pub mod foxglove;

@@ -5,7 +5,7 @@
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
-use echoloc_lab::{bag, bench, credence, link, map, predict, replay, scenario, simulate, LabError};
+use echoloc_lab::{bag, bench, board, credence, link, map, predict, replay, scenario, simulate, LabError};
 
 #[derive(Parser)]
 #[command(name = "echoloc-lab", version, about = "echoloc's lab tool: maps, windows, prediction, credence")]
@@ -33,6 +33,8 @@ enum Cmd {
     Log(bag::cli::LogArgs),
     /// Scenario files: replay one on the host through the same filters, or convert a robot's log into one.
     Scenario(scenario::ScenarioArgs),
+    /// A log or bag on the emulated board (QEMU) end to end, its figures beside the host's.
+    Board(board::BoardArgs),
     /// Benchmarks: echoloc against ray fans on grids and polygons, per window, with completeness and memory.
     Bench(bench::BenchArgs),
     /// The host link: stream odometry to a controller (the QEMU firmware, or a socket) and print what it sends back as JSON lines.
@@ -84,6 +86,7 @@ fn run(cmd: Cmd) -> Result<String, LabError> {
         Cmd::Scenario(a) => scenario::run(a),
         Cmd::Link(a) => link::link_cmd(&a),
         Cmd::Bench(a) => bench::bench_cmd(&a),
+        Cmd::Board(a) => board::board_cmd(&a),
         Cmd::Train(a) => credence::train_cmd(&a).map_err(|e| LabError(e.to_string())),
     }
 }
