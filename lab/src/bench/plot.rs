@@ -47,6 +47,8 @@ impl Figure for Scaling {
         c.configure_mesh()
             .light_line_style(RGBColor(240, 240, 240))
             .bold_line_style(RGBColor(215, 215, 215))
+            .x_label_formatter(&|v| format!("{v:.0}"))
+            .y_label_formatter(&|v| format!("{v:.0}"))
             .x_desc("convex pieces in the map")
             .y_desc("time per window (ns)")
             .label_style((FONT, 15))
