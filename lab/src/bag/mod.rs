@@ -10,7 +10,7 @@
 //! | odometry | `nav_msgs/msg/Odometry`, or `/tf` `odom` → `base_link` |
 //! | reference (optional) | `geometry_msgs/msg/PoseWithCovarianceStamped` (`/amcl_pose`), or an `Odometry` topic of a simulator's ground truth |
 //!
-//! Every reading becomes a [`Row`](crate::log::Row) at its `header.stamp`,
+//! Every reading becomes a [`Row`] at its `header.stamp`,
 //! with the odometry (and the reference) interpolated to that time. Ranges
 //! follow REP 117: `+Inf`, `-Inf` and values outside
 //! `[min_range, max_range]` are no echo; a negative or NaN range, or limits
