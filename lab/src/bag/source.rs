@@ -109,44 +109,50 @@ pub fn read(files: &[PathBuf]) -> Result<Messages, BagError> {
     let mut out = Messages::default();
     for f in files {
         let bytes = std::fs::read(f).map_err(|e| BagError::Io { path: f.clone(), problem: e.to_string() })?;
-        let unreadable = |e: mcap::McapError| BagError::Unreadable { path: f.clone(), problem: e.to_string() };
-        let stream = mcap::MessageStream::new_with_options(&bytes, mcap::read::Options::ValidateChunkCrcs.into())
-            .map_err(unreadable)?;
-        for m in stream {
-            let m = m.map_err(unreadable)?;
-            let ch = &m.channel;
-            let ty = ch.schema.as_ref().map_or(String::new(), |s| s.name.clone());
-            let topic = out.topics.entry(ch.topic.clone()).or_insert_with(|| Topic {
-                name: ch.topic.clone(),
-                ty: ty.clone(),
-                count: 0,
-            });
-            if topic.ty != ty {
-                return Err(BagError::Unreadable {
-                    path: f.clone(),
-                    problem: format!("topic {} carries two types, {} and {ty}", ch.topic, topic.ty),
-                });
-            }
-            topic.count += 1;
-            if !wanted(&ty) {
-                continue;
-            }
-            let schema_encoding = ch.schema.as_ref().map_or("", |s| s.encoding.as_str());
-            if ch.message_encoding != "cdr" || !matches!(schema_encoding, "ros2msg" | "ros2idl") {
-                return Err(BagError::Encoding {
-                    topic: ch.topic.clone(),
-                    problem: format!(
-                        "message encoding {:?}, schema encoding {schema_encoding:?}: a ROS 2 bag's are \"cdr\" \
-                         and \"ros2msg\"",
-                        ch.message_encoding
-                    ),
-                });
-            }
-            out.by_topic
-                .entry(ch.topic.clone())
-                .or_default()
-                .push(Stored { log_time: m.log_time, data: m.data.into_owned() });
-        }
+        read_bytes(&bytes, f, &mut out)?;
     }
     Ok(out)
+}
+
+/// Adds the messages of one MCAP file's bytes to `out`; `path` names it in errors.
+pub fn read_bytes(bytes: &[u8], path: &Path, out: &mut Messages) -> Result<(), BagError> {
+    let unreadable = |e: mcap::McapError| BagError::Unreadable { path: path.into(), problem: e.to_string() };
+    let stream = mcap::MessageStream::new_with_options(bytes, mcap::read::Options::ValidateChunkCrcs.into())
+        .map_err(unreadable)?;
+    for m in stream {
+        let m = m.map_err(unreadable)?;
+        let ch = &m.channel;
+        let ty = ch.schema.as_ref().map_or(String::new(), |s| s.name.clone());
+        let topic = out.topics.entry(ch.topic.clone()).or_insert_with(|| Topic {
+            name: ch.topic.clone(),
+            ty: ty.clone(),
+            count: 0,
+        });
+        if topic.ty != ty {
+            return Err(BagError::Unreadable {
+                path: path.into(),
+                problem: format!("topic {} carries two types, {} and {ty}", ch.topic, topic.ty),
+            });
+        }
+        topic.count += 1;
+        if !wanted(&ty) {
+            continue;
+        }
+        let schema_encoding = ch.schema.as_ref().map_or("", |s| s.encoding.as_str());
+        if ch.message_encoding != "cdr" || !matches!(schema_encoding, "ros2msg" | "ros2idl") {
+            return Err(BagError::Encoding {
+                topic: ch.topic.clone(),
+                problem: format!(
+                    "message encoding {:?}, schema encoding {schema_encoding:?}: a ROS 2 bag's are \"cdr\" \
+                     and \"ros2msg\"",
+                    ch.message_encoding
+                ),
+            });
+        }
+        out.by_topic
+            .entry(ch.topic.clone())
+            .or_default()
+            .push(Stored { log_time: m.log_time, data: m.data.into_owned() });
+    }
+    Ok(())
 }
