@@ -71,6 +71,9 @@ pub struct TrainArgs {
     /// Write PNG figures of the observed, net and Gaussian κ surfaces into this directory.
     #[arg(long)]
     pub figures: Option<PathBuf>,
+    /// The figures as SVG instead of PNG.
+    #[arg(long, requires = "figures")]
+    pub svg: bool,
     /// Skip the leave-one-day-out evaluation (train the final net only).
     #[arg(long = "no-cv")]
     pub no_cv: bool,
@@ -370,16 +373,17 @@ pub fn train_cmd(a: &TrainArgs) -> Result<String, CredenceError> {
         let fig = |p: &std::path::Path, bytes: Result<Vec<u8>, String>| {
             bytes.map_err(|e| CredenceError::io(p, std::io::Error::other(e)))
         };
+        let (format, ext) = if a.svg { (Format::Svg, "svg") } else { (Format::Png, "png") };
         for (file, title, f) in [
-            ("kappa_observed.png", format!("Observed κ, mean of {days} days"), &observed as plot::Surface<'_>),
-            ("kappa_net.png", "2-10-1 net κ (quantised, firmware)".to_string(), &netf),
-            ("kappa_gaussian.png", "Single-lobe Gaussian κ (fitted)".to_string(), &gaussf),
+            ("kappa_observed", format!("Observed κ, mean of {days} days"), &observed as plot::Surface<'_>),
+            ("kappa_net", "2-10-1 net κ (quantised, firmware)".to_string(), &netf),
+            ("kappa_gaussian", "Single-lobe Gaussian κ (fitted)".to_string(), &gaussf),
         ] {
-            let p = dir.join(file);
-            outputs.add(p.clone(), fig(&p, encode(&plot::surface_figure(&title, f), Format::Png))?);
+            let p = dir.join(format!("{file}.{ext}"));
+            outputs.add(p.clone(), fig(&p, encode(&plot::surface_figure(&title, f), format))?);
             written.push(p.display().to_string());
         }
-        let p = dir.join("kappa_profiles.png");
+        let p = dir.join(format!("kappa_profiles.{ext}"));
         let series = [
             plot::Series { label: "observed", colour: [0, 0, 0], kappa: &observed, dots: true },
             plot::Series { label: "net (firmware)", colour: [214, 39, 40], kappa: &netf, dots: false },
@@ -387,7 +391,7 @@ pub fn train_cmd(a: &TrainArgs) -> Result<String, CredenceError> {
         ];
         let profiles =
             plot::profile_figure("κ against θ: observed (dots), net, Gaussian", &[1000, 2500, 4000], &series);
-        outputs.add(p.clone(), fig(&p, encode(&profiles, Format::Png))?);
+        outputs.add(p.clone(), fig(&p, encode(&profiles, format))?);
         written.push(p.display().to_string());
         report.insert("figures".into(), json!(written));
     }
