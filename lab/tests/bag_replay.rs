@@ -229,7 +229,12 @@ fn a_truncated_message() {
 
 #[test]
 fn an_unreadable_chunk() {
-    refused("b-chunk", "range", "chunk", "b-chunk.mcap: unreadable MCAP: ");
+    refused(
+        "b-chunk",
+        "range",
+        "chunk",
+        "b-chunk.mcap: unreadable MCAP: chunk at byte 1071520: the record at byte 1071569 runs past the chunk's end",
+    );
 }
 
 #[test]
@@ -238,7 +243,7 @@ fn a_truncated_file() {
         "b-cut",
         "range",
         "truncated-file",
-        "b-cut.mcap: unreadable MCAP: MCAP file ended in the middle of a record",
+        "b-cut.mcap: unreadable MCAP: the chunk record at byte 1071520 claims 1048649 bytes, past the file's end (a truncated file?)",
     );
 }
 
