@@ -113,20 +113,47 @@ pub struct Recording {
     counts: BTreeMap<String, u64>,
 }
 
-fn mcap_err(e: mcap::McapError) -> String {
-    format!("MCAP: {e}")
+/// Why a recording could not be written.
+#[derive(Debug)]
+pub enum RecordingError {
+    /// The `mcap` writer refused (an I/O error in memory, a record too large).
+    Mcap(mcap::McapError),
+    /// A schema name this writer has no JSON Schema for.
+    UnknownSchema(String),
+}
+
+impl std::fmt::Display for RecordingError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::Mcap(e) => write!(f, "MCAP: {e}"),
+            Self::UnknownSchema(s) => write!(f, "no JSON Schema for {s}"),
+        }
+    }
+}
+
+impl std::error::Error for RecordingError {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match self {
+            Self::Mcap(e) => Some(e),
+            Self::UnknownSchema(_) => None,
+        }
+    }
+}
+
+fn mcap_err(e: mcap::McapError) -> RecordingError {
+    RecordingError::Mcap(e)
 }
 
 impl Recording {
     /// An empty recording (profile empty, zstd chunks).
-    pub fn new() -> Result<Self, String> {
+    pub fn new() -> Result<Self, RecordingError> {
         let w = mcap::WriteOptions::new().create(Cursor::new(Vec::new())).map_err(mcap_err)?;
         Ok(Self { w, schemas: BTreeMap::new(), channels: BTreeMap::new(), counts: BTreeMap::new() })
     }
 
     /// Writes `msg` on `topic` (created on first use with `schema`, a name
     /// from [`schemas`]) at `t_ns`.
-    pub fn write(&mut self, topic: &str, schema: &'static str, t_ns: u64, msg: &Value) -> Result<(), String> {
+    pub fn write(&mut self, topic: &str, schema: &'static str, t_ns: u64, msg: &Value) -> Result<(), RecordingError> {
         let channel = match self.channels.get(topic) {
             Some(&c) => c,
             None => {
@@ -138,7 +165,7 @@ impl Recording {
                             "foxglove.FrameTransforms" => schemas::frame_transforms(),
                             "foxglove.PoseInFrame" => schemas::pose_in_frame(),
                             "foxglove.Log" => schemas::log(),
-                            other => return Err(format!("no schema {other}")),
+                            other => return Err(RecordingError::UnknownSchema(other.into())),
                         };
                         let s =
                             self.w.add_schema(schema, "jsonschema", body.to_string().as_bytes()).map_err(mcap_err)?;
@@ -168,7 +195,7 @@ impl Recording {
     }
 
     /// The file's bytes.
-    pub fn finish(mut self) -> Result<Vec<u8>, String> {
+    pub fn finish(mut self) -> Result<Vec<u8>, RecordingError> {
         self.w.finish().map_err(mcap_err)?;
         Ok(self.w.into_inner().into_inner())
     }
@@ -241,7 +268,7 @@ pub fn record(
     steps: &[Step],
     trace: &Trace,
     unmapped: &[Vec<(f64, f64)>],
-) -> Result<Recording, String> {
+) -> Result<Recording, RecordingError> {
     let mut rec = Recording::new()?;
     let t_ns = |s: f64| (s.max(0.0) * 1e9).round() as u64;
     let t0 = steps.first().map_or(0, |s| t_ns(s.time_s));
@@ -368,7 +395,12 @@ pub fn verdict_color_named(v: Option<&str>) -> [f64; 4] {
 }
 
 /// The covariance ellipse and the sensor window of one reading.
-fn reading_messages(rec: &mut Recording, at: &At, s: &Sonar<'_>, (r_min, r_max, half): Window) -> Result<(), String> {
+fn reading_messages(
+    rec: &mut Recording,
+    at: &At,
+    s: &Sonar<'_>,
+    (r_min, r_max, half): Window,
+) -> Result<(), RecordingError> {
     let (t, x) = (at.t, at.pose);
     // The 2σ ellipse of the position covariance.
     if let Some([sxx, sxy, syy]) = at.covariance {
@@ -426,7 +458,7 @@ fn reading_messages(rec: &mut Recording, at: &At, s: &Sonar<'_>, (r_min, r_max, 
 }
 
 /// A log line at the start and at each change of the lost flag.
-fn state(rec: &mut Recording, t: u64, now: bool, last: &mut Option<bool>) -> Result<(), String> {
+fn state(rec: &mut Recording, t: u64, now: bool, last: &mut Option<bool>) -> Result<(), RecordingError> {
     if *last == Some(now) {
         return Ok(());
     }
@@ -445,7 +477,7 @@ fn state(rec: &mut Recording, t: u64, now: bool, last: &mut Option<bool>) -> Res
 /// covariance ellipse, the sensor window with its verdict, and the
 /// lost/tracking changes; stamped with the controller's clock (µs,
 /// unwrapped at 2³²). No map: the controller holds it.
-pub fn record_link(readings: &[echoloc::link::ReadingReport], mounts: &[Mount]) -> Result<Recording, String> {
+pub fn record_link(readings: &[echoloc::link::ReadingReport], mounts: &[Mount]) -> Result<Recording, RecordingError> {
     let mut rec = Recording::new()?;
     // The window's ranges and half-angle do not depend on the buffer.
     let window = window_of(0);

@@ -234,8 +234,8 @@ pub fn link_cmd(a: &LinkArgs) -> Result<String, LabError> {
     let console = console.and_then(|h| h.join().ok()).unwrap_or_default();
     let (sent, received, dropped) = result?;
     if let Some(p) = &a.mcap {
-        let rec = crate::foxglove::record_link(&readings, &mounts).map_err(LabError)?;
-        crate::map::write_atomically(p, &rec.finish().map_err(LabError)?)?;
+        let rec = crate::foxglove::record_link(&readings, &mounts).map_err(|e| LabError(format!("--mcap: {e}")))?;
+        crate::map::write_atomically(p, &rec.finish().map_err(|e| LabError(format!("--mcap: {e}")))?)?;
     }
     let summary = json!({"host": {
         "odometry_sent": sent.odometry, "corrupted": sent.corrupted, "garbage": sent.garbage,

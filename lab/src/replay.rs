@@ -171,8 +171,9 @@ pub fn replay_cmd(a: &ReplayArgs) -> Result<String, LabError> {
         outputs.extend([(p.clone(), paths), (error_plot_path(p), errors)]);
     }
     if let Some(p) = &a.mcap {
-        let rec = crate::foxglove::record(&map, &mounts, &steps, &trace, &[]).map_err(LabError)?;
-        outputs.push((p.clone(), rec.finish().map_err(LabError)?));
+        let rec = crate::foxglove::record(&map, &mounts, &steps, &trace, &[])
+            .map_err(|e| LabError(format!("--mcap: {e}")))?;
+        outputs.push((p.clone(), rec.finish().map_err(|e| LabError(format!("--mcap: {e}")))?));
     }
     write_all(&outputs)?;
     Ok(if a.json { r.to_string() } else { serde_json::to_string_pretty(&r).unwrap_or_default() })

@@ -166,8 +166,9 @@ pub fn simulate_cmd(a: &SimulateArgs) -> Result<String, LabError> {
         outputs.push((error_plot_path(p), errors));
     }
     if let Some(p) = &a.mcap {
-        let rec = crate::foxglove::record(&map, &mounts, &steps, &trace, &run.unmapped).map_err(LabError)?;
-        outputs.push((p.clone(), rec.finish().map_err(LabError)?));
+        let rec = crate::foxglove::record(&map, &mounts, &steps, &trace, &run.unmapped)
+            .map_err(|e| LabError(format!("--mcap: {e}")))?;
+        outputs.push((p.clone(), rec.finish().map_err(|e| LabError(format!("--mcap: {e}")))?));
     }
     write_all(&outputs)?;
     Ok(if a.json { report.to_string() } else { serde_json::to_string_pretty(&report).unwrap_or_default() })
