@@ -14,6 +14,25 @@
 //! | `/state` | `foxglove.Log` | at the start and at each change: `EKF tracking` (INFO) or `EKF lost` (WARNING) |
 //!
 //! A particle cloud is not recorded: this build has no particle filter.
+//!
+//! [`record`] writes a run; [`Recording`] writes any message on a channel
+//! of a well-known schema:
+//!
+//! ```
+//! use echoloc_lab::foxglove::Recording;
+//! use serde_json::json;
+//!
+//! let mut rec = Recording::new()?;
+//! let t = 1_500_000_000; // ns
+//! rec.write("/state", "foxglove.Log", t, &json!({"timestamp": {"sec": 1, "nsec": 500_000_000},
+//!     "level": 2, "message": "EKF tracking", "name": "ekf", "file": "", "line": 0}))?;
+//! let bytes = rec.finish()?;
+//! // Read back with Foxglove's own reader.
+//! let m = mcap::MessageStream::new(&bytes)?.next().unwrap()?;
+//! assert_eq!(m.channel.schema.as_ref().unwrap().name, "foxglove.Log");
+//! assert_eq!((m.channel.message_encoding.as_str(), m.log_time), ("json", t));
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
 
 use std::collections::BTreeMap;
 use std::io::Cursor;
