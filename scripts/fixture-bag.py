@@ -30,9 +30,12 @@ writer's "no return").
 --break KIND writes a malformed bag (no oracle log), each a row of
 docs/bags.md's table: no-range, no-transform, negative, nan, mm, backwards,
 no-odom, bad-limits, truncated-message, cloud-count, sqlite, chunk,
-truncated-file.
+truncated-file, chunk-crc (with --chunks: a byte flipped in a compressed chunk).
 
-Usage: python3 scripts/fixture-bag.py LOG.csv OUT_DIR --form range [--expected OUT.csv] [--break KIND]
+--chunks zstd|lz4 rewrites the bag's MCAP with PyPI's mcap writer, its chunks
+compressed as rosbag2's storage presets do (every message as it was).
+
+Usage: python3 scripts/fixture-bag.py LOG.csv OUT_DIR --form range [--expected OUT.csv] [--break KIND] [--chunks zstd]
 """
 import argparse
 import csv
@@ -156,6 +159,8 @@ def main():
     ap.add_argument("--form", choices=["range", "frame", "cloud"], default="range")
     ap.add_argument("--expected")
     ap.add_argument("--break", dest="brk")
+    ap.add_argument("--chunks", choices=["none", "zstd", "lz4"], default="none",
+                    help="rewrite the MCAP with compressed chunks (PyPI's mcap writer)")
     a = ap.parse_args()
     rows = read_log(a.log)
     brk = a.brk
@@ -287,8 +292,52 @@ def main():
         else:
             data = data[: len(data) * 6 // 10]
         open(mcap, "wb").write(bytes(data))
+    if a.chunks in ("zstd", "lz4"):
+        mcap_path = next(os.path.join(a.out, f) for f in os.listdir(a.out) if f.endswith(".mcap"))
+        rechunk(mcap_path, a.chunks)
+        if brk == "chunk-crc":
+            # One byte flipped in the middle of the first chunk's compressed records.
+            data = bytearray(open(mcap_path, "rb").read())
+            p = 8
+            while data[p] != 0x06:
+                p += 9 + struct.unpack_from("<Q", data, p + 1)[0]
+            body = p + 9
+            clen = struct.unpack_from("<I", data, body + 28)[0]
+            records = body + 32 + clen + 8
+            rlen = struct.unpack_from("<Q", data, records - 8)[0]
+            data[records + rlen // 2] ^= 0x01
+            open(mcap_path, "wb").write(bytes(data))
     if a.expected and brk is None:
         write_expected(a.expected, expected)
+
+
+def rechunk(path, compression):
+    """Rewrites the MCAP file with PyPI's mcap writer, its chunks compressed
+    (zstd: rosbag2's `zstd_fast`/`zstd_small` storage presets; lz4), every
+    schema, channel and message as it was, with chunk CRCs."""
+    from mcap.reader import make_reader
+    from mcap.writer import CompressionType, Writer as McapWriter
+
+    kind = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4}[compression]
+    with open(path, "rb") as f:
+        reader = make_reader(f)
+        header = reader.get_header()
+        items = list(reader.iter_messages(log_time_order=False))
+    out = path + ".tmp"
+    with open(out, "wb") as f:
+        w = McapWriter(f, compression=kind, chunk_size=256 * 1024, enable_crcs=True)
+        w.start(profile=header.profile, library="fixture-bag.py (mcap " + compression + ")")
+        schemas, channels = {}, {}
+        for schema, channel, message in items:
+            if schema.id not in schemas:
+                schemas[schema.id] = w.register_schema(schema.name, schema.encoding, schema.data)
+            if channel.id not in channels:
+                channels[channel.id] = w.register_channel(channel.topic, channel.message_encoding,
+                                                          schemas[schema.id], channel.metadata)
+            w.add_message(channels[channel.id], message.log_time, message.data, message.publish_time,
+                          message.sequence)
+        w.finish()
+    os.replace(out, path)
 
 
 if __name__ == "__main__":

@@ -39,6 +39,11 @@ fn run_log() -> &'static PathBuf {
 
 /// Runs the independent writer; `brk` makes a malformed bag.
 fn write_bag(name: &str, form: &str, brk: Option<&str>) -> (PathBuf, PathBuf) {
+    write_bag_with(name, form, brk, &[])
+}
+
+/// [`write_bag`] with more of the writer's options.
+fn write_bag_with(name: &str, form: &str, brk: Option<&str>, extra: &[&str]) -> (PathBuf, PathBuf) {
     let out = tmp("bag", name);
     let expected = tmp("bag", &format!("{name}.csv"));
     let mut c = Command::new("python3");
@@ -47,6 +52,7 @@ fn write_bag(name: &str, form: &str, brk: Option<&str>) -> (PathBuf, PathBuf) {
     if let Some(b) = brk {
         c.args(["--break", b]);
     }
+    c.args(extra);
     let o = c.output().expect("python3 runs");
     assert!(
         o.status.success(),
@@ -65,7 +71,17 @@ fn flatten(v: &Value, at: String, out: &mut Vec<(String, Value)>) {
 
 /// The bag replays to the figures of the oracle's log, every key.
 fn same_as_oracle(form: &str, bag_arg: impl Fn(&Path) -> PathBuf, rmse_m: f64) -> Value {
-    let (bag, expected) = write_bag(form, form, None);
+    same_as_oracle_with(form, form, &[], bag_arg, rmse_m)
+}
+
+fn same_as_oracle_with(
+    name: &str,
+    form: &str,
+    extra: &[&str],
+    bag_arg: impl Fn(&Path) -> PathBuf,
+    rmse_m: f64,
+) -> Value {
+    let (bag, expected) = write_bag_with(name, form, None, extra);
     let map = shared_map("depot.yaml");
     let by_bag = run_json(&["replay", "--json", "--map", s(&map), "--bag", s(&bag_arg(&bag))]);
     let by_log = run_json(&["replay", "--json", "--map", s(&map), "--log", s(&expected)]);
@@ -323,4 +339,21 @@ fn paths_that_are_not_bags() {
     assert!(String::from_utf8_lossy(&o.stderr).contains("cannot be used with"));
     let o = lab().args(["replay", "--map", s(&map)]).output().unwrap();
     assert!(String::from_utf8_lossy(&o.stderr).contains("--log <LOG>"));
+}
+
+/// Chunks compressed as rosbag2's storage presets write them (zstd) and with
+/// lz4, with chunk CRCs, by PyPI's mcap writer: the same figures.
+#[test]
+fn compressed_chunks_zstd_and_lz4() {
+    same_as_oracle_with("zstd", "range", &["--chunks", "zstd"], Path::to_path_buf, 0.1);
+    same_as_oracle_with("lz4", "cloud", &["--chunks", "lz4"], Path::to_path_buf, 0.2);
+}
+
+#[test]
+fn a_damaged_compressed_chunk() {
+    let (bag, _) = write_bag_with("b-crc", "range", Some("chunk-crc"), &["--chunks", "zstd"]);
+    let map = shared_map("depot.yaml");
+    let o = lab().args(["replay", "--map", s(&map), "--bag", s(&bag)]).output().unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && err.contains("b-crc.mcap: unreadable MCAP: Error during decompression"), "{err}");
 }
