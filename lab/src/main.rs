@@ -27,7 +27,7 @@ enum Cmd {
     Synth(credence::SynthArgs),
     /// Self-referencing in a simulated world: a route, odometry, a physical sonar, verdicts, threshold method and EKF.
     Simulate(simulate::SimulateArgs),
-    /// A robot's log (CSV, docs/log.md) through prediction, verdicts, the threshold method and the EKF.
+    /// A robot's log (CSV, docs/log.md) or ROS 2 bag (docs/bags.md) through prediction, verdicts, the threshold method and the EKF.
     Replay(replay::ReplayArgs),
     /// Logs: a ROS 2 bag written as the plain CSV log (docs/log.md, docs/bags.md).
     Log(bag::cli::LogArgs),
