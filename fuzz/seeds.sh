@@ -6,7 +6,18 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 d=${1:?usage: fuzz/seeds.sh DIR}
-mkdir -p "$d/compiled_map" "$d/scenario" "$d/link_frames" "$d/predict_ekf" "$d/geojson" "$d/ros_map"
+mkdir -p "$d/compiled_map" "$d/scenario" "$d/link_frames" "$d/predict_ekf" "$d/geojson" "$d/ros_map" "$d/bag"
+# A small ROS 2 bag (the first 48 readings of the hand-made depot log, written
+# by the independent writer with PyPI's rosbags, when it is installed).
+bagtmp=$(mktemp -d)
+head -n 50 lab/tests/data/depot-hand.csv >"$bagtmp/log.csv"
+if python3 scripts/fixture-bag.py "$bagtmp/log.csv" "$bagtmp/bag" --form range >/dev/null 2>&1; then
+  cp "$bagtmp"/bag/*.mcap "$d/bag/range.mcap"
+fi
+if python3 scripts/fixture-bag.py "$bagtmp/log.csv" "$bagtmp/cloud" --form cloud >/dev/null 2>&1; then
+  cp "$bagtmp"/cloud/*.mcap "$d/bag/cloud.mcap"
+fi
+rm -rf "$bagtmp"
 cp maps/office.geojson "$d/geojson/"
 cp boards/qemu-mps2-an386/office.map boards/qemu-mps2-an386/depot.map "$d/compiled_map/"
 head -c 4000 boards/qemu-mps2-an386/depot.scn >"$d/scenario/depot_head.scn"

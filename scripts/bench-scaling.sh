@@ -24,6 +24,8 @@ for n in 1 2 4 8; do
   maps+=(--map "$out/depot_${n}x$n.map")
 done
 "$lab" bench "${maps[@]}" --poses "$poses" --rounds "$rounds" --plot docs/figures/bench-scaling.png --json >"$out/bench.json"
+# The figure's data beside it: `bench --from-json` redraws it without re-running.
+cp "$out/bench.json" docs/figures/bench-scaling.json
 python3 - "$out/bench.json" <<'PY'
 import json, sys
 d = json.load(open(sys.argv[1]))

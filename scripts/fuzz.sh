@@ -6,6 +6,7 @@
 #   predict_ekf   prediction and the EKF on the real maps with arbitrary inputs
 #   geojson       the GeoJSON importer and the whole map build on what it accepts
 #   ros_map       the ROS map_server importer (YAML, 0x00, PGM/PNG image) and the map build
+#   bag           ROS 2 bags: a whole MCAP file, and CDR messages of every topic type read
 # Seeds come from the project's own files (fuzz/seeds.sh writes them into
 # target/fuzz-corpus/). Installs the nightly toolchain and cargo-fuzz when
 # absent. Usage: bash scripts/fuzz.sh [SECONDS_PER_TARGET] [TARGET...]
@@ -16,7 +17,7 @@ cd "$(dirname "$0")/.."
 secs=${1:-20}
 shift || true
 targets=("$@")
-[ ${#targets[@]} -gt 0 ] || targets=(compiled_map scenario link_frames predict_ekf geojson ros_map)
+[ ${#targets[@]} -gt 0 ] || targets=(compiled_map scenario link_frames predict_ekf geojson ros_map bag)
 rustup toolchain list | grep -q '^nightly' || rustup toolchain install nightly --profile minimal
 command -v cargo-fuzz >/dev/null 2>&1 || cargo install cargo-fuzz --locked
 corpus=target/fuzz-corpus

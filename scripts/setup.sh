@@ -18,3 +18,9 @@ if ! command -v qemu-system-arm >/dev/null 2>&1; then
   $sudo_ apt-get update -qq
   DEBIAN_FRONTEND=noninteractive $sudo_ apt-get install -y -qq qemu-system-arm >/dev/null
 fi
+# The independent writer and reader of ROS 2 bags and MCAP recordings the lab's
+# tests run (scripts/fixture-bag.py, scripts/mcap-check.py): PyPI's rosbags
+# and mcap, installed when absent.
+if ! python3 -c "import rosbags, mcap" >/dev/null 2>&1; then
+  python3 -m pip install -q --disable-pip-version-check rosbags mcap
+fi

@@ -12,7 +12,7 @@
 //!   timing, a record whose transducer the driver would not fire.
 
 use echoloc::controller::replay::{
-    check, localizer, run, scenario_odometry, ReplayError, ReplaySetup, ReplaySummary, Score,
+    check, localizer, run, scenario_odometry, start, ReplayError, ReplaySetup, ReplaySummary, Score,
 };
 use echoloc::credence::net::CredenceNet;
 use echoloc::driver::SpeedOfSound;
@@ -75,7 +75,8 @@ fn driver_path_equals_direct_loop_and_meets_the_bounds() {
     let bench = Bench::new(scenario, 1_000);
     check(&bench, crc32(fx.bytes()), &setup).unwrap();
     let mut via_driver = Vec::new();
-    let loc = localizer::<0, 16>(&bench, &setup, map.field(), None, 1).unwrap();
+    let mut loc = localizer::<0, 16>(&setup, 1);
+    start(&mut loc, &bench, map.field(), None).unwrap();
     let summary = run::<_, _, 4, 16, 0>(
         &bench,
         &map,
@@ -83,7 +84,7 @@ fn driver_path_equals_direct_loop_and_meets_the_bounds() {
         &mounts,
         &net,
         &setup,
-        loc,
+        &mut loc,
         scenario_odometry,
         |c, r, rec, _| {
             via_driver.push((r.transducer, rec.cycle, c.state()));
@@ -125,7 +126,8 @@ fn driver_path_equals_direct_loop_and_meets_the_bounds() {
 fn replay(bytes: &[u8], map: &MapView<'_>, setup: &ReplaySetup<16>) -> Result<ReplaySummary, ReplayError> {
     let scenario = Scenario::parse(bytes).unwrap();
     let bench = Bench::new(scenario, 1_000);
-    let loc = localizer::<0, 16>(&bench, setup, map.field(), None, 1)?;
+    let mut loc = localizer::<0, 16>(setup, 1);
+    start(&mut loc, &bench, map.field(), None)?;
     run::<_, _, 4, 16, 0>(
         &bench,
         map,
@@ -133,7 +135,7 @@ fn replay(bytes: &[u8], map: &MapView<'_>, setup: &ReplaySetup<16>) -> Result<Re
         &mounts(&scenario),
         &CredenceNet::shipped(),
         setup,
-        loc,
+        &mut loc,
         scenario_odometry,
         |_, _, _, _| {},
     )

@@ -8,6 +8,7 @@
 //! |---|---|
 //! | [`map`] | import ROS map_server grids ([`map::ros`]) and GeoJSON ([`map::geojson`]) into convex, buffered polygons; compile the firmware's map blob ([`map::import`], [`map::build_map`]); inspect, export, preview |
 //! | [`ring`] | rings: `pioneer16` or a JSON file of transducer mounts |
+//! | [`bag`] | ROS 2 bags (rosbag2 MCAP) read as a log: ranges, the ring from `/tf_static`, odometry, a reference (`docs/bags.md`) |
 //! | [`log`] | the plain CSV log a robot's logger writes (`docs/log.md`): read with line-numbered errors, write |
 //! | [`replay`] | a log through prediction, verdicts, the threshold method and the EKF; `echoloc-lab replay` |
 //! | [`scenario`] | binary scenarios for the boards (`docs/scenario.md`): replay on the host, convert a log |
@@ -15,7 +16,10 @@
 //! | [`predict`] | windows and ring predictions from the command line |
 //! | [`credence`] | the credence net's data, training and quantisation |
 //! | [`bench`](mod@bench) | echoloc against ray fans on grids and polygons |
+//! | [`board`] | a log or bag on the emulated board end to end: map compiled, scenario converted, QEMU run, figures beside the host's |
 //! | [`link`] | the host link to a controller |
+//! | [`foxglove`] | a run as a Foxglove recording (MCAP, well-known Foxglove schemas; `docs/foxglove.md`) |
+//! | [`figure`] | every figure, drawn with `plotters` as PNG or SVG in the shipped DejaVu Sans |
 //!
 //! Compile a robot's ROS map into the blob the firmware reads (a `build.rs`
 //! can do this; `examples/map-at-build-time` does), then predict a ring and
@@ -45,8 +49,12 @@
 //! The small host program `examples/verdicts.rs` does this from the command
 //! line: `cargo run -p echoloc-lab --example verdicts -- MAP x,y,θ R0,R1,…`.
 
+pub mod bag;
 pub mod bench;
+pub mod board;
 pub mod credence;
+pub mod figure;
+pub mod foxglove;
 pub mod link;
 pub mod log;
 pub mod map;

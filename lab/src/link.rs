@@ -44,6 +44,13 @@ pub struct LinkArgs {
     /// Damage every Nth odometry frame (one bit flipped) and send a garbage frame after it (never the last frame).
     #[arg(long = "corrupt-every")]
     corrupt_every: Option<u32>,
+    /// Writes what the controller sent as a Foxglove recording (MCAP,
+    /// docs/foxglove.md): its poses, covariance, sensor windows and verdicts.
+    #[arg(long)]
+    mcap: Option<PathBuf>,
+    /// The controller's ring, for the sensor windows of --mcap: pioneer16 or a JSON ring file.
+    #[arg(long, default_value = "pioneer16")]
+    ring: String,
     /// Give up after this many seconds.
     #[arg(long = "timeout-s", default_value_t = 120)]
     timeout_s: u64,
@@ -177,6 +184,10 @@ fn send_frames(
 
 pub fn link_cmd(a: &LinkArgs) -> Result<String, LabError> {
     let deadline = Instant::now() + Duration::from_secs(a.timeout_s);
+    if let Some(p) = &a.mcap {
+        crate::simulate::check_writable(p)?;
+    }
+    let mounts = crate::predict::ring_mounts(&a.ring)?;
     let scenario_bytes = match &a.scenario {
         Some(p) => Some(std::fs::read(p).map_err(|e| LabError(format!("{}: {e}", p.display())))?),
         None => None,
@@ -214,13 +225,18 @@ pub fn link_cmd(a: &LinkArgs) -> Result<String, LabError> {
             lines
         })
     });
-    let result = talk(&sock_path, &mut qemu, deadline, samples, a.corrupt_every);
+    let mut readings = Vec::new();
+    let result = talk(&sock_path, &mut qemu, deadline, samples, a.corrupt_every, &mut readings);
     let firmware_exit = qemu.as_mut().map(|q| wait_or_kill(q, deadline));
     if a.qemu.is_some() {
         let _ = std::fs::remove_file(&sock_path);
     }
     let console = console.and_then(|h| h.join().ok()).unwrap_or_default();
     let (sent, received, dropped) = result?;
+    if let Some(p) = &a.mcap {
+        let rec = crate::foxglove::record_link(&readings, &mounts).map_err(|e| LabError(format!("--mcap: {e}")))?;
+        crate::map::write_atomically(p, &rec.finish().map_err(|e| LabError(format!("--mcap: {e}")))?)?;
+    }
     let summary = json!({"host": {
         "odometry_sent": sent.odometry, "corrupted": sent.corrupted, "garbage": sent.garbage,
         "messages_received": received, "frames_dropped": dropped,
@@ -251,6 +267,7 @@ fn talk(
     deadline: Instant,
     samples: Vec<Sample>,
     corrupt_every: Option<u32>,
+    readings: &mut Vec<echoloc::link::ReadingReport>,
 ) -> Result<(Sent, u32, u32), LabError> {
     let stream = connect(sock, qemu, deadline)?;
     let writer = stream.try_clone().map_err(|e| LabError(format!("socket: {e}")))?;
@@ -279,6 +296,9 @@ fn talk(
         for &b in &buf[..n] {
             if let Some(Ok(m)) = rx.push::<FromController>(b) {
                 received += 1;
+                if let FromController::Reading(r) = &m {
+                    readings.push(*r);
+                }
                 let line = serde_json::to_string(&m).map_err(|e| LabError(e.to_string()))?;
                 let mut out = stdout.lock();
                 let _ = writeln!(out, "{line}");

@@ -5,7 +5,7 @@
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
-use echoloc_lab::{bench, credence, link, map, predict, replay, scenario, simulate, LabError};
+use echoloc_lab::{bag, bench, board, credence, link, map, predict, replay, scenario, simulate, LabError};
 
 #[derive(Parser)]
 #[command(name = "echoloc-lab", version, about = "echoloc's lab tool: maps, windows, prediction, credence")]
@@ -27,10 +27,14 @@ enum Cmd {
     Synth(credence::SynthArgs),
     /// Self-referencing in a simulated world: a route, odometry, a physical sonar, verdicts, threshold method and EKF.
     Simulate(simulate::SimulateArgs),
-    /// A robot's log (CSV, docs/log.md) through prediction, verdicts, the threshold method and the EKF.
+    /// A robot's log (CSV, docs/log.md) or ROS 2 bag (docs/bags.md) through prediction, verdicts, the threshold method and the EKF.
     Replay(replay::ReplayArgs),
+    /// Logs: a ROS 2 bag written as the plain CSV log (docs/log.md, docs/bags.md).
+    Log(bag::cli::LogArgs),
     /// Scenario files: replay one on the host through the same filters, or convert a robot's log into one.
     Scenario(scenario::ScenarioArgs),
+    /// A log or bag on the emulated board (QEMU) end to end, its figures beside the host's.
+    Board(board::BoardArgs),
     /// Benchmarks: echoloc against ray fans on grids and polygons, per window, with completeness and memory.
     Bench(bench::BenchArgs),
     /// The host link: stream odometry to a controller (the QEMU firmware, or a socket) and print what it sends back as JSON lines.
@@ -78,9 +82,11 @@ fn run(cmd: Cmd) -> Result<String, LabError> {
         Cmd::Synth(a) => credence::synth_cmd(&a).map_err(|e| LabError(e.to_string())),
         Cmd::Simulate(a) => simulate::simulate_cmd(&a),
         Cmd::Replay(a) => replay::replay_cmd(&a),
+        Cmd::Log(a) => bag::cli::log_cmd(&a),
         Cmd::Scenario(a) => scenario::run(a),
         Cmd::Link(a) => link::link_cmd(&a),
         Cmd::Bench(a) => bench::bench_cmd(&a),
+        Cmd::Board(a) => board::board_cmd(&a),
         Cmd::Train(a) => credence::train_cmd(&a).map_err(|e| LabError(e.to_string())),
     }
 }

@@ -23,22 +23,40 @@ pub struct ReplayArgs {
     #[arg(long)]
     pub map: PathBuf,
     /// The log: CSV, one row per reading (docs/log.md).
+    #[arg(long, required_unless_present = "bag", conflicts_with = "bag")]
+    pub log: Option<PathBuf>,
+    /// A ROS 2 bag instead of a log: a rosbag2 directory (metadata.yaml) or
+    /// an .mcap file (docs/bags.md).
     #[arg(long)]
-    pub log: PathBuf,
-    /// The ring: pioneer16, or a JSON file of [x_m, y_m, heading_deg] per transducer.
-    #[arg(long, default_value = "pioneer16")]
-    pub ring: String,
-    /// Where the robot starts in the map, x_m,y_m,θ_deg (default: the first
-    /// reference pose, else the first odometry pose).
+    pub bag: Option<PathBuf>,
+    /// The bag's topics (with --bag).
+    #[command(flatten)]
+    pub topics: crate::bag::cli::BagTopics,
+    /// The ring: pioneer16, or a JSON file of [x_m, y_m, heading_deg] per
+    /// transducer (default pioneer16; with --bag, the bag's /tf_static).
+    #[arg(long)]
+    pub ring: Option<String>,
+    /// Where the robot starts in the map: x_m,y_m,θ_deg (tracked from
+    /// there), x_m,y_m,θ_deg,σ_m,σ_deg (searched around there), or
+    /// `unknown` (searched for over the whole map). Default: the first
+    /// reference pose, else the first odometry pose, tracked.
     #[arg(long = "initial-pose", allow_hyphen_values = true)]
     pub initial_pose: Option<String>,
+    /// Writes one CSV row per ring cycle: the mode, the estimate, its σ and
+    /// the reference where the log has one (docs/localization.md).
+    #[arg(long)]
+    pub trace: Option<PathBuf>,
     /// C-space buffer for a .yaml or .geojson map, mm.
     #[arg(long = "buffer-mm", default_value_t = 100)]
     pub buffer_mm: u32,
     /// One JSON object (the default prints the same, indented).
     #[arg(long)]
     pub json: bool,
-    /// Writes the map with the paths to OUT.png and the error over time to OUT-error.png.
+    /// Writes the run as a Foxglove recording (MCAP, docs/foxglove.md).
+    #[arg(long)]
+    pub mcap: Option<PathBuf>,
+    /// Writes the map with the paths to OUT.png and the error over time to
+    /// OUT-error.png (SVG for OUT.svg).
     #[arg(long)]
     pub plot: Option<PathBuf>,
 }
@@ -120,18 +138,42 @@ pub fn replay_cmd(a: &ReplayArgs) -> Result<String, LabError> {
         check_writable(p)?;
         check_writable(&error_plot_path(p))?;
     }
-    let given = a.initial_pose.as_deref().map(|s| parse_pose(s, "--initial-pose")).transpose()?;
-    let mounts = ring_mounts(&a.ring)?;
-    let log = crate::log::read_file(&a.log, mounts.len())?;
+    for p in a.mcap.iter().chain(a.trace.iter()) {
+        check_writable(p)?;
+    }
+    let arg = a
+        .initial_pose
+        .as_deref()
+        .map(|s| crate::simulate::localization::parse_start(s, "--initial-pose"))
+        .transpose()
+        .map_err(LabError)?;
+    let given = match arg {
+        Some(
+            crate::simulate::localization::StartArg::At(p) | crate::simulate::localization::StartArg::Around(p, _),
+        ) => Some(p),
+        _ => None,
+    };
+    let (mounts, log, source, bag) = match (&a.log, &a.bag) {
+        (_, Some(b)) => {
+            let bag = crate::bag::cli::load(b, &a.topics, a.ring.as_deref())?;
+            (bag.ring.clone(), Log { rows: bag.rows.clone() }, b, Some(bag))
+        }
+        (Some(l), None) => {
+            let mounts = ring_mounts(a.ring.as_deref().unwrap_or("pioneer16"))?;
+            (mounts.clone(), crate::log::read_file(l, mounts.len())?, l, None)
+        }
+        (None, None) => return Err(LabError("give --log or --bag".into())),
+    };
     let (map, blob) = load_map_and_blob(&a.map, a.buffer_mm)?;
     let steps = steps_of_log(&log);
-    let trace = filters::with_field(&blob, |field| {
-        filters::run(&map, field, &mounts, &start(&log, given), &steps, &mut |_| {})
-    })
-    .and_then(|r| r)
-    .map_err(|e| LabError(format!("{}: {e}", a.log.display())))?;
+    let mut how = start(&log, given);
+    crate::simulate::apply_start(&mut how, arg);
+    let trace = filters::with_field(&blob, |field| filters::run(&map, field, &mounts, &how, &steps, &mut |_| {}))
+        .and_then(|r| r)
+        .map_err(|e| LabError(format!("{}: {e}", source.display())))?;
     let mut r = report(&trace, None);
     if let Some(o) = r.as_object_mut() {
+        o.insert("localization".into(), crate::simulate::localization::report(&trace, &[]));
         o.insert(
             "log".into(),
             json!({
@@ -140,10 +182,23 @@ pub fn replay_cmd(a: &ReplayArgs) -> Result<String, LabError> {
                 "cycles": steps.last().map_or(0, |s| s.cycle + 1),
             }),
         );
+        if let Some(bag) = &bag {
+            o.insert("bag".into(), crate::bag::cli::summary(bag));
+        }
     }
+    let mut outputs = Vec::new();
     if let Some(p) = &a.plot {
-        let (paths, errors) = figures::draw(&map, &[], &trace);
-        write_all(&[(p.clone(), paths), (error_plot_path(p), errors)])?;
+        let (paths, errors) = figures::draw_as(&map, &[], &trace, crate::figure::Format::of(p)).map_err(LabError)?;
+        outputs.extend([(p.clone(), paths), (error_plot_path(p), errors)]);
     }
+    if let Some(p) = &a.trace {
+        outputs.push((p.clone(), crate::simulate::localization::trace_csv(&trace).into_bytes()));
+    }
+    if let Some(p) = &a.mcap {
+        let rec = crate::foxglove::record(&map, &mounts, &steps, &trace, &[])
+            .map_err(|e| LabError(format!("--mcap: {e}")))?;
+        outputs.push((p.clone(), rec.finish().map_err(|e| LabError(format!("--mcap: {e}")))?));
+    }
+    write_all(&outputs)?;
     Ok(if a.json { r.to_string() } else { serde_json::to_string_pretty(&r).unwrap_or_default() })
 }

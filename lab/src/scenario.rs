@@ -99,7 +99,10 @@ fn replay(a: &ReplayArgs) -> Result<String, LabError> {
     })
     .and_then(|r| r)
     .map_err(|e| LabError(format!("{}: {e}", a.scenario.display())))?;
-    let r = report(&trace, None);
+    let mut r = report(&trace, None);
+    if let Some(o) = r.as_object_mut() {
+        o.insert("localization".into(), crate::simulate::localization::report(&trace, &[]));
+    }
     Ok(if a.json { r.to_string() } else { serde_json::to_string_pretty(&r).unwrap_or_default() })
 }
 

@@ -71,11 +71,35 @@ fn bad_arguments_are_refused() {
     for (args, expect) in [
         (vec!["bench", "--map", m, "--poses", "0"], "must be positive"),
         (vec!["bench", "--map", m, "--half-angles-deg", "95"], "each in (0, 90)"),
-        (vec!["bench", "--map", m, "--plot", "x.svg"], "must end in .png"),
+        (vec!["bench", "--map", m, "--plot", "x.jpg"], "must end in .png or .svg"),
         (vec!["bench", "--map", "/nonexistent.map"], "nonexistent"),
     ] {
         let o = lab().args(&args).output().unwrap();
         let err = String::from_utf8_lossy(&o.stderr);
         assert!(!o.status.success() && err.contains(expect), "{args:?}: {err}");
     }
+}
+
+/// `--from-json` redraws the scaling figure from an earlier run's JSON
+/// (docs/figures/bench-scaling.json, the run docs/benchmarks.md quotes).
+#[test]
+fn the_scaling_figure_redraws_from_json() {
+    let dir = std::env::temp_dir().join(format!("echoloc-bench-json-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let (png, svg) = (dir.join("s.png"), dir.join("s.svg"));
+    let json = root().join("docs/figures/bench-scaling.json");
+    for out in [&png, &svg] {
+        let o = lab().args(["bench", "--from-json"]).arg(&json).arg("--plot").arg(out).output().unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    }
+    assert_eq!(&std::fs::read(&png).unwrap()[..8], b"\x89PNG\r\n\x1a\n");
+    let text = std::fs::read_to_string(&svg).unwrap();
+    for name in ["echoloc_full", "parry2d_1deg", "convex pieces in the map"] {
+        assert!(text.contains(name), "{name} in the SVG");
+    }
+    let empty = dir.join("empty.json");
+    std::fs::write(&empty, r#"{"maps":[]}"#).unwrap();
+    let o = lab().args(["bench", "--from-json"]).arg(&empty).arg("--plot").arg(dir.join("e.png")).output().unwrap();
+    assert!(String::from_utf8_lossy(&o.stderr).contains("no \"methods\" with results"));
+    assert!(!dir.join("e.png").exists());
 }

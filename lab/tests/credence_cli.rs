@@ -175,3 +175,27 @@ fn a_failing_synth_writes_no_day() {
     assert!(String::from_utf8_lossy(&o.stderr).contains("day3.csv"), "names the file");
     assert_eq!(listing(&out), ["day3.csv"], "nothing written, no temporary file left");
 }
+
+#[test]
+fn train_figures_as_svg() {
+    let out = tmp("train-svg");
+    let o = lab()
+        .arg("train")
+        .arg(root().join("docs/credence-data"))
+        .args(["--epochs", "5", "--restarts", "1", "--no-cv", "--svg", "--figures"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    ok(&o);
+    for (svg, words) in [
+        ("kappa_net.svg", ["2-10-1 net κ", "sensor frame", "R (mm)"]),
+        ("kappa_profiles.svg", ["observed", "Gaussian", "R = 2500 mm"]),
+    ] {
+        let text = std::fs::read_to_string(out.join(svg)).unwrap();
+        assert!(text.starts_with("<svg"), "{svg}");
+        for w in words {
+            assert!(text.contains(w), "{svg}: {w:?}");
+        }
+    }
+    assert!(!out.join("kappa_net.png").exists());
+}

@@ -158,3 +158,40 @@ fn a_bad_stdin_line_is_named() {
         assert!(o.stdout.is_empty());
     }
 }
+
+/// `link --mcap` records what the controller sent; PyPI's `mcap` reads it
+/// back (`scripts/mcap-check.py --link`): one pose, window and ellipse per
+/// Reading message the link printed, the first and last poses the
+/// controller's.
+#[test]
+fn link_mcap_reads_back_with_the_controllers_poses() {
+    let elf = build_firmware();
+    let scn = root().join("boards/qemu-mps2-an386/depot.scn");
+    let dir = std::env::temp_dir().join(format!("echoloc-link-mcap-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let (mcap, lines) = (dir.join("link.mcap"), dir.join("link.jsonl"));
+    let o = lab()
+        .args(["link", "--timeout-s", "300", "--qemu"])
+        .arg(&elf)
+        .arg("--scenario")
+        .arg(&scn)
+        .arg("--mcap")
+        .arg(&mcap)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "link failed: {}", String::from_utf8_lossy(&o.stderr));
+    std::fs::write(&lines, &o.stdout).unwrap();
+    let c = std::process::Command::new("python3")
+        .arg(root().join("scripts/mcap-check.py"))
+        .arg(&mcap)
+        .arg(&lines)
+        .arg("--link")
+        .output()
+        .unwrap();
+    assert!(c.status.success(), "mcap-check: {}", String::from_utf8_lossy(&c.stderr));
+    let sum: serde_json::Value = serde_json::from_slice(&c.stdout).unwrap();
+    let readings = String::from_utf8(o.stdout).unwrap().lines().filter(|l| l.starts_with("{\"Reading\"")).count();
+    assert!(readings > 1000);
+    assert_eq!(sum["channels"]["/sonar"]["count"], readings);
+    assert_eq!(sum["channels"]["/pose/controller"]["schema"], "foxglove.PoseInFrame");
+}

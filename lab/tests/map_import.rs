@@ -85,7 +85,11 @@ fn bad_inputs_fail_clearly_and_write_nothing() {
         r#"{"type":"Polygon","coordinates":[[[0,0],[1,1],[1,0],[0,1],[0,0]]]}"#,
         "NotSimple",
     );
-    import_fails("nan.geojson", r#"{"type":"LineString","coordinates":[[0,0],["a",0]]}"#, "x is not a number");
+    import_fails(
+        "nan.geojson",
+        r#"{"type":"LineString","coordinates":[[0,0],["a",0]]}"#,
+        "not GeoJSON (RFC 7946): invalid type: string \"a\", expected f64 at line 1 column 46",
+    );
     let o = lab().args(["map", "import", "/nonexistent/x.geojson", "-o", "/tmp/never.map"]).output().unwrap();
     assert!(!o.status.success());
     assert!(String::from_utf8_lossy(&o.stderr).contains("/nonexistent/x.geojson"));

@@ -317,7 +317,12 @@ fn bad_ros_maps_fail_clearly_and_write_nothing() {
     ros_fails("yaw", &YAML.replace("[0.0, 0.0, 0.0]", "[0.0, 0.0, 1.57]"), img, &["origin[2]: yaw"]);
     ros_fails("bad-mode", &format!("{YAML}mode: fancy\n"), img, &["mode: expected trinary, scale or raw"]);
     ros_fails("thresholds", &YAML.replace("0.196", "0.9"), img, &["free_thresh: 0.9 must be below"]);
-    ros_fails("garbage-line", &format!("{YAML}just words\n"), img, &["line 7: expected `key: value`"]);
+    ros_fails(
+        "garbage-line",
+        &format!("{YAML}just words\n"),
+        img,
+        &["line 7: not YAML", "(expected `key: value` lines)"],
+    );
     // Coordinates that would overflow.
     ros_fails(
         "far-origin",
@@ -401,4 +406,58 @@ fn png_maps_and_modes_import() {
     let s = run_ok(&["map", "import", "-o"], &[&dir.join("r.map"), &y]);
     assert_eq!(s["cells"]["occupied"], 8);
     assert_eq!(s["polygons"], 1);
+}
+
+/// ROS map_server's documented reading of the YAML (wiki.ros.org/map_server,
+/// "Value Interpretation"), on what the old line splitter could not read: a
+/// quoted image name with spaces, `origin` as a flow list over two lines,
+/// `mode: scale` with `negate: 1`. With negate, a pixel of value x has
+/// occupancy p = x / 255; p > occupied_thresh is occupied, p < free_thresh
+/// free, and scale mode maps the values between to a gradient (neither an
+/// obstacle nor known free space in a polygon map). The oracle counts the
+/// cells from that formula; the import must count the same.
+#[test]
+fn map_server_semantics_of_the_yaml() {
+    let dir = tmp("semantics");
+    std::fs::create_dir_all(&dir).unwrap();
+    let img = pgm(16, 16, |c, r| (r * 16 + c) as u8);
+    std::fs::write(dir.join("my map.pgm"), &img).unwrap();
+    let y = dir.join("m.yaml");
+    std::fs::write(
+        &y,
+        "image: \"my map.pgm\"\nmode: scale\nresolution: 0.05\norigin: [-1.0,\n         2.0, 0.0]\nnegate: 1\n\
+         occupied_thresh: 0.65\nfree_thresh: 0.196\n",
+    )
+    .unwrap();
+    let s = run_ok(&["map", "import", "-o"], &[&dir.join("m.map"), &y]);
+    let (mut occupied, mut free) = (0, 0);
+    for x in 0..=255u32 {
+        let p = f64::from(x) / 255.0;
+        if p > 0.65 {
+            occupied += 1;
+        } else if p < 0.196 {
+            free += 1;
+        }
+    }
+    assert_eq!((occupied, free), (90, 50), "x ≥ 166 and x ≤ 49");
+    assert_eq!(s["cells"]["occupied"], occupied, "{s}");
+    assert_eq!(s["cells"]["free"], free, "{s}");
+    assert_eq!(s["cells"]["unknown"], 256 - occupied - free, "{s}");
+    // The same image without negate: p = (255 - x) / 255.
+    std::fs::write(&y, std::fs::read_to_string(&y).unwrap().replace("negate: 1", "negate: 0")).unwrap();
+    let s = run_ok(&["map", "import", "-o"], &[&dir.join("n.map"), &y]);
+    let occupied_plain = (0..=255u32).filter(|x| f64::from(255 - x) / 255.0 > 0.65).count();
+    assert_eq!(s["cells"]["occupied"], occupied_plain, "{s}");
+    // The origin of the two-line flow list places the map: its export's
+    // obstacle (the image's bottom rows) starts at x = -1.0 m, y = 2.0 m.
+    let out = dir.join("m.geojson");
+    run_ok(&["map", "export", "-o"], &[&out, &dir.join("m.map")]);
+    let g: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&out).unwrap()).unwrap();
+    let coords = &g["features"][0]["geometry"]["coordinates"][0][0];
+    let (minx, miny) = coords
+        .as_array()
+        .unwrap()
+        .iter()
+        .fold((f64::MAX, f64::MAX), |(a, b), p| (a.min(p[0].as_f64().unwrap()), b.min(p[1].as_f64().unwrap())));
+    assert!((-1.0..=-0.95).contains(&minx) && (2.0..=2.05).contains(&miny), "({minx}, {miny})");
 }

@@ -381,6 +381,23 @@ fn plot_writes_two_valid_pngs() {
     assert_eq!(left, ["run-error.png", "run.png"], "only the two figures");
 }
 
+#[test]
+fn plot_writes_svg_for_an_svg_name() {
+    let d = scratch("plot-svg");
+    let out = d.join("run.svg");
+    simulate(&["--map", s(&office()), "--seed", "4", "--distance-m", "10", "--plot", s(&out)]);
+    for (p, words) in
+        [(out.clone(), ["truth", "EKF", "x (m)"]), (d.join("run-error.svg"), ["EKF", "time (s)", "heading error"])]
+    {
+        let text = std::fs::read_to_string(&p).unwrap();
+        assert!(text.trim_start().starts_with("<svg") && text.trim_end().ends_with("</svg>"), "{}", p.display());
+        assert!(text.contains("<polyline"), "{}: the tracks are lines", p.display());
+        for w in words {
+            assert!(text.contains(w), "{}: {w:?} in the text", p.display());
+        }
+    }
+}
+
 // 7. A custom ring.
 #[test]
 fn a_ring_file_of_eight_transducers_works() {

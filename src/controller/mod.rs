@@ -136,7 +136,7 @@ pub struct Controller<'a, M: ?Sized, K: ?Sized, const N: usize = 0> {
     mounts: &'a [Mount],
     params: PredictParams,
     credence: &'a K,
-    localizer: Localizer<N>,
+    localizer: &'a mut Localizer<N>,
     cycle: Option<u32>,
     counts: LoopCounts,
 }
@@ -144,14 +144,15 @@ pub struct Controller<'a, M: ?Sized, K: ?Sized, const N: usize = 0> {
 impl<'a, M: MapSource + ?Sized, K: Credence + ?Sized, const N: usize> Controller<'a, M, K, N> {
     /// A controller over `map` (whose localization field is `field`) for a
     /// ring whose transducer `i` sits at `mounts[i]`, localizing with
-    /// `localizer` (started as its maker chose).
+    /// `localizer` (started as its holder chose; the holder keeps it, as a
+    /// board keeps it in one place: 21 KiB at 1 024 particles).
     pub fn new(
         map: &'a M,
         field: &'a FieldView<'a>,
         mounts: &'a [Mount],
         params: PredictParams,
         credence: &'a K,
-        localizer: Localizer<N>,
+        localizer: &'a mut Localizer<N>,
     ) -> Self {
         Self { map, field, mounts, params, credence, localizer, cycle: None, counts: LoopCounts::default() }
     }
@@ -232,7 +233,7 @@ impl<'a, M: MapSource + ?Sized, K: Credence + ?Sized, const N: usize> Controller
 
     /// The localizer.
     pub fn localizer(&self) -> &Localizer<N> {
-        &self.localizer
+        self.localizer
     }
 
     /// Counts over the run.

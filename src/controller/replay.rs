@@ -219,25 +219,30 @@ pub fn check<const N: usize>(bench: &Bench<'_>, map_crc: u32, setup: &ReplaySetu
         .map_err(ReplayError::Scenario)
 }
 
-/// The localizer a replay of the bench's scenario starts with, on the
-/// map's `field`: tracking from the scenario's start pose (`start: None`),
-/// or as `start` says; `seed` fixes the particles' draws.
-pub fn localizer<const P: usize, const N: usize>(
+/// A localizer for a replay: the setup's settings, `seed` fixing the
+/// particles' draws. Start it with [`start`].
+pub fn localizer<const P: usize, const N: usize>(setup: &ReplaySetup<N>, seed: u64) -> Localizer<P> {
+    Localizer::new(setup.localizer, setup.ekf, setup.verdicts, seed)
+}
+
+/// Starts `localizer` for a replay of the bench's scenario on the map's
+/// `field`: tracking from the scenario's start pose (`how: None`), or as
+/// `how` says.
+pub fn start<const P: usize>(
+    localizer: &mut Localizer<P>,
     bench: &Bench<'_>,
-    setup: &ReplaySetup<N>,
     field: &FieldView<'_>,
-    start: Option<Start>,
-    seed: u64,
-) -> Result<Localizer<P>, ReplayError> {
+    how: Option<Start>,
+) -> Result<(), ReplayError> {
     let h = bench.scenario().header();
-    let start = start.unwrap_or(Start::Known { pose: h.start, sigma: h.start_sigma });
-    Localizer::new(setup.localizer, setup.ekf, setup.verdicts, start, field, seed).map_err(ReplayError::Start)
+    let how = how.unwrap_or(Start::Known { pose: h.start, sigma: h.start_sigma });
+    localizer.start(how, field).map_err(ReplayError::Start)
 }
 
 /// Replays every record of the bench's scenario: the driver fires and times
 /// each ping, `odometry` gives the motion up to it, the controller judges it
 /// and updates the filter, and `each` sees every step (for a link, a log or
-/// a cost counter). Call [`check`] first.
+/// a cost counter). Call [`check`] first, and [`start`] the localizer.
 #[allow(clippy::too_many_arguments)]
 pub fn run<M, K, const A: usize, const N: usize, const P: usize>(
     bench: &Bench<'_>,
@@ -246,7 +251,7 @@ pub fn run<M, K, const A: usize, const N: usize, const P: usize>(
     mounts: &[Mount],
     credence: &K,
     setup: &ReplaySetup<N>,
-    localizer: Localizer<P>,
+    localizer: &mut Localizer<P>,
     mut odometry: impl FnMut(&RingReading, &Record) -> Result<Motion, ReplayError>,
     mut each: impl FnMut(&Controller<'_, M, K, P>, &RingReading, &Record, &Step),
 ) -> Result<ReplaySummary, ReplayError>

@@ -58,7 +58,8 @@ impl<'f, 'a> FieldLookup<'f, 'a> {
     #[inline]
     fn dir(&self, heading_rad: f32) -> usize {
         let d = libm::roundf(heading_rad * self.dirs_per_rad) as i32;
-        d.rem_euclid(self.dirs) as usize
+        // `dirs` ≥ 1 (`new`); checked, so no division by zero is linked in.
+        d.checked_rem_euclid(self.dirs).unwrap_or(0) as usize
     }
 
     /// The grid cell holding (x, y) and the position within it, or `None`

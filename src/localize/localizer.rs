@@ -191,7 +191,8 @@ pub struct LocalizerConfig {
     /// ... and this share of them over all free space. While they search,
     /// the EKF goes on beside them (and its estimate is the one reported);
     /// when their heaviest cluster holds half the weight within
-    /// `calm_radius_m` and `calm_angle_rad` of it, and it is not lost, for
+    /// `calm_radius_m` and `calm_angle_rad` of it, or its readings fit it
+    /// again (the fit monitor and its own gate), and it is not lost, for
     /// `calm_cycles` cycles in a row, the search ends: a false alarm costs
     /// a few cycles, and no relocation.
     pub wake_global: f32,
@@ -335,23 +336,19 @@ fn compose(a: &[f32; 3], b: &[f32; 3]) -> [f32; 3] {
 }
 
 impl<const N: usize> Localizer<N> {
-    /// A localizer starting at `start` on the map whose field is `field`,
-    /// the EKF built from `ekf` (its settings) and judging with `verdicts`;
-    /// `seed` fixes every random draw.
-    pub fn new(
-        cfg: LocalizerConfig,
-        ekf: EkfConfig,
-        verdicts: VerdictConfig,
-        start: Start,
-        field: &FieldView<'_>,
-        seed: u64,
-    ) -> Result<Self, LocalizeError> {
-        let ekf = Ekf::new([0.0; 3], [1.0; 3], ekf)?;
-        let mut l = Self {
+    /// A localizer with settings `cfg`, the EKF's `ekf`, judging with
+    /// `verdicts`; `seed` fixes every random draw. It knows nothing yet:
+    /// [`Localizer::start`] it (its mode until then is *searching* with no
+    /// particles, and it refuses nothing). Infallible, so that the caller's
+    /// one copy is built in place (a `Localizer<1024>` is 21 KiB; returned
+    /// inside a `Result` it would pass through the stack more than once).
+    #[inline]
+    pub fn new(cfg: LocalizerConfig, ekf: EkfConfig, verdicts: VerdictConfig, seed: u64) -> Self {
+        Self {
             cfg,
-            referencer: Referencer::new(ekf, verdicts),
+            referencer: Referencer::new(Ekf::origin(ekf), verdicts),
             particles: ParticleSet::new(seed),
-            mode: Mode::Tracking,
+            mode: Mode::Searching,
             sensed: Vec::new(),
             dropped: 0,
             offset: [0.0; 3],
@@ -365,9 +362,7 @@ impl<const N: usize> Localizer<N> {
             fit_seen: 0,
             misfit: 0,
             counts: LocalizerCounts::default(),
-        };
-        l.start(start, field)?;
-        Ok(l)
+        }
     }
 
     /// Starts again from `start` (a pose the robot's computer sent, or none):
@@ -586,7 +581,10 @@ impl<const N: usize> Localizer<N> {
                                 && wrap(p[2] - x[2]).abs() <= cfg.calm_angle_rad
                                 && !self.referencer.ekf.is_lost()
                         });
-                        self.calm = if self.ekf_awake && agrees { self.calm.saturating_add(1) } else { 0 };
+                        // Or the EKF's readings fit it again, by the fit
+                        // monitor and by its own gate.
+                        let fits = self.misfit == 0 && !self.referencer.ekf.is_lost();
+                        self.calm = if self.ekf_awake && (agrees || fits) { self.calm.saturating_add(1) } else { 0 };
                         if self.ekf_awake && self.calm >= cfg.calm_cycles {
                             self.mode = Mode::Tracking;
                             self.ekf_awake = false;
@@ -694,7 +692,19 @@ impl<const N: usize> Localizer<N> {
             cand.score = self.history.score(&cand.pose, &self.sensed, lookup, beam, extra);
             cand.copies = 1;
         }
-        candidates.sort_unstable_by(|a, b| b.score.total_cmp(&a.score));
+        // Best first: an insertion sort (at most SCAN_KEEP, and core's sorts
+        // link a panic for orderings that are not total).
+        for i in 1..candidates.len() {
+            let mut j = i;
+            while j > 0 {
+                let (Some(a), Some(b)) = (candidates.get(j - 1), candidates.get(j)) else { break };
+                if a.score.total_cmp(&b.score).is_ge() {
+                    break;
+                }
+                candidates.swap(j - 1, j);
+                j -= 1;
+            }
+        }
         candidates.truncate(usize::from(c.verify_keep).max(1));
         let own = cluster.map_or(f32::NEG_INFINITY, |k| self.history.score(&k.mean, &self.sensed, lookup, beam, extra));
         let elsewhere = |p: &[f32; 3]| {

@@ -23,10 +23,10 @@
 //! // Without a field there is no free space to search: a known start only.
 //! let field = FieldView::EMPTY;
 //! let start = Start::Known { pose: [1.0, 2.0, 0.0], sigma: [0.05, 0.05, 0.02] };
-//! let loc: Localizer<64> =
-//!     Localizer::new(LocalizerConfig::DEFAULT, EkfConfig::DEFAULT, VerdictConfig::POLAROID, start, &field, 1).unwrap();
+//! let mut loc: Localizer<64> = Localizer::new(LocalizerConfig::DEFAULT, EkfConfig::DEFAULT, VerdictConfig::POLAROID, 1);
+//! loc.start(start, &field).unwrap();
 //! assert_eq!(loc.mode(), Mode::Tracking);
-//! assert!(Localizer::<64>::new(LocalizerConfig::DEFAULT, EkfConfig::DEFAULT, VerdictConfig::POLAROID, Start::Unknown, &field, 1).is_err());
+//! assert_eq!(loc.start(Start::Unknown, &field), Err(echoloc::localize::LocalizeError::NoFreeSpace));
 //! ```
 
 pub mod beam;

@@ -1,5 +1,7 @@
-//! Monte Carlo localization's particle set, in fixed memory: `N` poses,
-//! their weights and one word of scratch each, held by the caller.
+//! Monte Carlo localization's particle set, in fixed memory: `N` poses and
+//! their weights (16 bytes a particle), held by the caller. Resampling
+//! works in place: the weights' words hold the copy counts, then the KLD
+//! bins' hash table.
 //!
 //! One ring cycle: the particles stand where the robot was at the cycle's
 //! start; each reading is scored at every particle through the transducer's
@@ -127,7 +129,7 @@ impl McConfig {
         max_inject: 0.25,
         explore: 0.1,
         inject_tries: 1,
-        scan_headings: 32,
+        scan_headings: 0,
     };
 }
 
@@ -195,8 +197,11 @@ pub enum ParticleError {
 pub struct ParticleSet<const N: usize> {
     pose: [[f32; 3]; N],
     weight: [f32; N],
-    scratch: [u32; N],
     n: usize,
+    /// The particles from this index on were injected at the last
+    /// resampling, with this prior factor (Mixture MCL); the others have 1.
+    injected_from: usize,
+    injected_prior: f32,
     rng: Rng,
     /// Augmented MCL's long- and short-term average likelihoods (0: unset).
     w_slow: f32,
@@ -215,8 +220,9 @@ impl<const N: usize> ParticleSet<N> {
         Self {
             pose: [[0.0; 3]; N],
             weight: [0.0; N],
-            scratch: [1.0f32.to_bits(); N],
             n: 0,
+            injected_from: N,
+            injected_prior: 1.0,
             rng: Rng::new(seed),
             w_slow: 0.0,
             w_fast: 0.0,
@@ -274,7 +280,7 @@ impl<const N: usize> ParticleSet<N> {
         let mut tries = 0;
         while !f.is_free(n) {
             tries += 1;
-            n = if tries < 64 { rng.below(nodes) } else { (n + 1) % nodes };
+            n = if tries < 64 { rng.below(nodes) } else { (n + 1).checked_rem(nodes).unwrap_or(0) };
             if tries > 64 + nodes {
                 return None;
             }
@@ -356,11 +362,9 @@ impl<const N: usize> ParticleSet<N> {
         for v in self.weight.iter_mut().take(self.n) {
             *v = w;
         }
-        // Every particle's prior factor (kept in the scratch words between
-        // a resampling and the next weighing) is 1.
-        for s in self.scratch.iter_mut() {
-            *s = 1.0f32.to_bits();
-        }
+        // Every particle's prior factor is 1.
+        self.injected_from = N;
+        self.injected_prior = 1.0;
     }
 
     fn reset_averages(&mut self) {
@@ -446,8 +450,9 @@ impl<const N: usize> ParticleSet<N> {
         let alpha = self.tempering(best, cfg);
         self.alpha = alpha;
         let mut sum = 0.0f32;
-        for (w, &prior) in self.weight.iter_mut().zip(self.scratch.iter()).take(self.n) {
-            let v = f32::from_bits(prior) * exp_fast(alpha * (*w - best));
+        for (i, w) in self.weight.iter_mut().enumerate().take(self.n) {
+            let prior = if i >= self.injected_from { self.injected_prior } else { 1.0 };
+            let v = prior * exp_fast(alpha * (*w - best));
             *w = v;
             sum += v;
         }
@@ -490,8 +495,9 @@ impl<const N: usize> ParticleSet<N> {
     fn tempering(&self, best: f32, cfg: &McConfig) -> f32 {
         let ess = |a: f32| {
             let (mut s1, mut s2) = (0.0f32, 0.0f32);
-            for (&ll, &prior) in self.weight.iter().zip(self.scratch.iter()).take(self.n) {
-                let v = f32::from_bits(prior) * exp_fast(a * (ll - best));
+            for (i, &ll) in self.weight.iter().enumerate().take(self.n) {
+                let prior = if i >= self.injected_from { self.injected_prior } else { 1.0 };
+                let v = prior * exp_fast(a * (ll - best));
                 s1 += v;
                 s2 += v * v;
             }
@@ -649,8 +655,10 @@ impl<const N: usize> ParticleSet<N> {
         let mut u = self.rng.uniform() * step;
         let mut cum = 0.0f32;
         let mut teeth = 0usize;
-        for (i, (&w, c)) in self.weight.iter().zip(self.scratch.iter_mut()).take(n).enumerate() {
-            cum += w;
+        // Each weight, once added to the running sum, is replaced by the
+        // particle's number of copies.
+        for (i, c) in self.weight.iter_mut().take(n).enumerate() {
+            cum += *c;
             // The last particle takes the teeth rounding leaves.
             let end = if i + 1 == n { f32::INFINITY } else { cum };
             let mut copies = 0u32;
@@ -659,7 +667,7 @@ impl<const N: usize> ParticleSet<N> {
                 teeth += 1;
                 u += step;
             }
-            *c = copies;
+            *c = copies as f32;
         }
         // 2. In place: each particle keeps its slot for its first copy; each
         //    extra copy goes to a slot nobody keeps (a particle with no
@@ -668,16 +676,16 @@ impl<const N: usize> ParticleSet<N> {
         let mut free = 0usize;
         let mut next = n;
         for i in 0..n {
-            let copies = self.scratch.get(i).copied().unwrap_or(0);
+            let copies = self.weight.get(i).map_or(0, |&c| c as u32);
             let src = self.pose.get(i).copied().unwrap_or_default();
             for _ in 1..copies {
-                while free < n && self.scratch.get(free).is_some_and(|&c| c != 0) {
+                while free < n && self.weight.get(free).is_some_and(|&c| c != 0.0) {
                     free += 1;
                 }
                 let slot = if free < n {
                     // Claimed: it holds one copy now, and is nobody's source.
-                    if let Some(c) = self.scratch.get_mut(free) {
-                        *c = 1;
+                    if let Some(c) = self.weight.get_mut(free) {
+                        *c = 1.0;
                     }
                     free
                 } else {
@@ -692,7 +700,7 @@ impl<const N: usize> ParticleSet<N> {
         let full = N;
         // 3. KLD: bins the new set fills (counted up to half the capacity,
         //    where the bound passes any capacity worth having), hashed into
-        //    the scratch words.
+        //    the weights' words (the weights are spent).
         let bins = self.count_bins(full, cfg);
         let want = libm::ceilf(kld_bound(bins, cfg.kld_epsilon, cfg.kld_z)) as usize;
         let m = want.max(usize::from(cfg.min_particles)).clamp(1, full);
@@ -744,10 +752,8 @@ impl<const N: usize> ParticleSet<N> {
         // cluster as their prior (Mixture MCL weighs its draws from the
         // readings by the belief at them): they take over from a cluster
         // only where the readings say so, not by sheer number.
-        let prior = inject_prior.clamp(1e-3, 1.0).to_bits();
-        for s in self.scratch.iter_mut().take(m).skip(first_injected) {
-            *s = prior;
-        }
+        self.injected_from = first_injected;
+        self.injected_prior = inject_prior.clamp(1e-3, 1.0);
     }
 
     /// One pose for injection: the likeliest-in-proportion of
@@ -801,11 +807,11 @@ impl<const N: usize> ParticleSet<N> {
     }
 
     /// Distinct KLD bins among the first `count` particles, counted in an
-    /// open-addressing table in the scratch words (up to half of them).
+    /// open-addressing table in the weights' words (up to half of them).
     fn count_bins(&mut self, count: usize, cfg: &McConfig) -> u32 {
         let cap = N;
-        for s in self.scratch.iter_mut() {
-            *s = 0;
+        for s in self.weight.iter_mut() {
+            *s = f32::from_bits(0);
         }
         let (inv_xy, inv_t) = (1.0 / cfg.bin_m, 1.0 / cfg.bin_rad);
         let mut bins = 0u32;
@@ -813,13 +819,18 @@ impl<const N: usize> ParticleSet<N> {
             let bx = libm::floorf(p[0] * inv_xy) as i32 as u32;
             let by = libm::floorf(p[1] * inv_xy) as i32 as u32;
             let bt = libm::floorf((p[2] + core::f32::consts::PI) * inv_t) as i32 as u32;
-            let key = (bx.wrapping_mul(0x9E37_79B1) ^ by.wrapping_mul(0x85EB_CA77) ^ bt.wrapping_mul(0xC2B2_AE3D)) | 1;
+            // Bit 30 clear: the word is never a NaN's or an infinity's bit
+            // pattern, so it passes through the f32 slot unchanged on every
+            // target; bit 0 set: never the empty slot's 0.
+            let key = ((bx.wrapping_mul(0x9E37_79B1) ^ by.wrapping_mul(0x85EB_CA77) ^ bt.wrapping_mul(0xC2B2_AE3D))
+                & 0xBFFF_FFFF)
+                | 1;
             let mut h = (key.wrapping_mul(0x2545_F491) >> 7) as usize % cap;
             loop {
-                match self.scratch.get(h).copied() {
+                match self.weight.get(h).map(|w| w.to_bits()) {
                     Some(0) => {
-                        if let Some(s) = self.scratch.get_mut(h) {
-                            *s = key;
+                        if let Some(s) = self.weight.get_mut(h) {
+                            *s = f32::from_bits(key);
                         }
                         bins += 1;
                         break;

@@ -175,7 +175,7 @@ impl<'a> MapView<'a> {
         let sizes = section_sizes(&counts).ok_or(BlobError::SizeMismatch)?;
         let need = sizes.iter().try_fold(COUNTS_LEN as u64, |a, &s| a.checked_add(s)).ok_or(BlobError::SizeMismatch)?;
         // The field follows the refs and fills the rest of the payload.
-        if (payload.len() as u64) < need + super::field::FIELD_HEADER_LEN as u64 {
+        if (payload.len() as u64) < need.saturating_add(super::field::FIELD_HEADER_LEN as u64) {
             return Err(BlobError::Truncated);
         }
         if counts.reserved != 0 {

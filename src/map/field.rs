@@ -292,9 +292,10 @@ impl<'a> FieldView<'a> {
             4 * (rows + 1),
             8 * h.runs as u64,
             4 * (h.nodes as u64).div_ceil(32),
-            (h.nodes as u64 * h.dirs as u64).next_multiple_of(4),
+            // Below 2⁶⁴ − 2³³ (two u32s), so rounding up to 4 cannot wrap.
+            (h.nodes as u64 * h.dirs as u64).wrapping_add(3) & !3,
         ];
-        let need = sizes.iter().sum::<u64>() + FIELD_HEADER_LEN as u64;
+        let need = sizes.iter().fold(FIELD_HEADER_LEN as u64, |a, &b| a.saturating_add(b));
         if (bytes.len() as u64) < need {
             return Err(BlobError::Truncated);
         }
@@ -388,7 +389,7 @@ impl<'a> FieldView<'a> {
     #[inline]
     pub fn node_at(&self, col: u32, row: u32) -> Option<u32> {
         let lo = *self.row_start.get(row as usize)?;
-        let hi = *self.row_start.get(row as usize + 1)?;
+        let hi = *self.row_start.get((row as usize).saturating_add(1))?;
         let runs = self.runs.get(lo as usize..hi as usize)?;
         // Rows hold a few runs: a linear scan beats a search.
         for r in runs {
@@ -397,7 +398,8 @@ impl<'a> FieldView<'a> {
                 return None;
             }
             if col < c0 + u32::from(r.len) {
-                return Some(r.first + (col - c0));
+                // Validated: a run's nodes are numbered below `nodes` (u32).
+                return Some(r.first.wrapping_add(col - c0));
             }
         }
         None
@@ -407,7 +409,9 @@ impl<'a> FieldView<'a> {
     /// (one scan of the row's runs for both).
     #[inline]
     pub fn pair_at(&self, col: u32, row: u32) -> (Option<u32>, Option<u32>) {
-        let (Some(&lo), Some(&hi)) = (self.row_start.get(row as usize), self.row_start.get(row as usize + 1)) else {
+        let (Some(&lo), Some(&hi)) =
+            (self.row_start.get(row as usize), self.row_start.get((row as usize).saturating_add(1)))
+        else {
             return (None, None);
         };
         let runs = self.runs.get(lo as usize..hi as usize).unwrap_or(&[]);
@@ -421,9 +425,10 @@ impl<'a> FieldView<'a> {
                     return (None, (col + 1 == c0).then_some(r.first));
                 }
                 if col < end {
-                    let n = r.first + (col - c0);
+                    // Validated: a run's nodes are numbered below `nodes` (u32).
+                    let n = r.first.wrapping_add(col - c0);
                     if col + 1 < end {
-                        return (Some(n), Some(n + 1));
+                        return (Some(n), Some(n.wrapping_add(1)));
                     }
                     first = Some(n);
                     continue;
@@ -458,7 +463,8 @@ impl<'a> FieldView<'a> {
         let k = self.runs.partition_point(|r| r.first <= n).checked_sub(1)?;
         let run = self.runs.get(k)?;
         let row = self.row_start.partition_point(|&s| s as usize <= k).checked_sub(1)?;
-        Some((u32::from(run.col) + (n - run.first), row as u32))
+        // `run.first ≤ n` (the search), and the run lies within the row.
+        Some((u32::from(run.col).wrapping_add(n.wrapping_sub(run.first)), row as u32))
     }
 
     /// Node `n`'s position, mm.
@@ -466,7 +472,10 @@ impl<'a> FieldView<'a> {
         let (c, r) = self.cell_of(n)?;
         let h = &self.header;
         // `parse` checked that every node's coordinates are within ±COORD_MAX.
-        Some((h.origin_x + (c * h.node_mm) as i32, h.origin_y + (r * h.node_mm) as i32))
+        Some((
+            h.origin_x.wrapping_add(c.wrapping_mul(h.node_mm) as i32),
+            h.origin_y.wrapping_add(r.wrapping_mul(h.node_mm) as i32),
+        ))
     }
 }
 

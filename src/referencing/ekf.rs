@@ -302,6 +302,33 @@ impl Ekf {
         self.relocate(x, p)
     }
 
+    /// A filter at the origin with unit standard deviations, to be
+    /// [relocated](Ekf::relocate) where the robot is: infallible, so a
+    /// holder of one (the localizer) is built in place.
+    #[inline]
+    pub fn origin(cfg: EkfConfig) -> Self {
+        let mut p = [[0.0; 3]; 3];
+        for (i, row) in p.iter_mut().enumerate() {
+            row[i] = crate::f32math::clamp(1.0, cfg.min_var[i], cfg.max_var[i]);
+        }
+        Self {
+            x: [0.0; 3],
+            p,
+            cfg,
+            cycle: CycleUpdates::default(),
+            bad_run: 0,
+            rates: (0.0, 0.0),
+            rated: 0,
+            lost: false,
+            lost_count: 0,
+            cycles_lost: 0,
+            recent: Recent::new(),
+            recoveries: 0,
+            last_recovery: None,
+            calibration: OdometryCalibration::new(),
+        }
+    }
+
     /// The state (x m, y m, φ rad).
     pub fn state(&self) -> [f32; 3] {
         self.x

@@ -21,11 +21,12 @@
 use core::hint::black_box;
 
 use cortex_m_rt::entry;
-use echoloc::controller::replay::{check, run, scenario_odometry, ReplaySetup};
+use echoloc::controller::replay::{check, localizer, run, scenario_odometry, start, ReplaySetup};
 use echoloc::controller::{OdometrySample, OdometrySync};
 use echoloc::credence::net::CredenceNet;
 use echoloc::link::frame::{encode, Decoder};
 use echoloc::link::{FromController, Link, ToController};
+use echoloc::localize::Start;
 use echoloc::map::{MapSource, MapView};
 use echoloc::predict::{nearest_in_window, predict_ring, Mount, Pose, PredictParams, PIONEER16};
 use echoloc::referencing::{MountM, Target, Threshold, ThresholdConfig};
@@ -134,10 +135,23 @@ fn main() -> ! {
             }
             let bench = Bench::new(s, 1_000);
             if check(&bench, echoloc::map::crc32(map_bytes), &setup).is_ok() {
-                if let Ok(summary) =
-                    run::<_, _, 4, 16>(&bench, &map, &mounts, &net, &setup, scenario_odometry, |_, _, _, _| {})
-                {
-                    found += summary.accepted;
+                // With the particles: a search from no pose (the localizer's
+                // every mode is reachable from it: hand-off, tracking, wake-up).
+                let mut loc = localizer::<1024, 16>(&setup, 1);
+                if start(&mut loc, &bench, map.field(), Some(Start::Unknown)).is_ok() {
+                    if let Ok(summary) = run::<_, _, 4, 16, 1024>(
+                        &bench,
+                        &map,
+                        map.field(),
+                        &mounts,
+                        &net,
+                        &setup,
+                        &mut loc,
+                        scenario_odometry,
+                        |_, _, _, _| {},
+                    ) {
+                        found += summary.accepted;
+                    }
                 }
             }
         }

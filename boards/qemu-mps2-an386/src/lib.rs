@@ -4,6 +4,7 @@
 //! into a failing exit code (linked into every binary that uses this crate).
 #![no_std]
 
+pub mod partition;
 pub mod replay;
 pub mod uart;
 

@@ -48,6 +48,9 @@ static SCENARIO: &[u8] = include_bytes!("../depot.scn");
 /// The scenario the localizer must find itself in: the depot, no start pose
 /// given, and a kidnap half-way (`docs/localization.md`).
 static FIND_SCENARIO: &[u8] = include_bytes!("../depot-find.scn");
+/// Its simulator seed, which the lab's localizer draws from too: the board
+/// repeats the host's run (`echoloc-lab simulate --seed 12 …`).
+const FIND_SEED: u64 = 12;
 /// Scratch RAM for the corrupted copy of the office map.
 static SCRATCH: ConstStaticCell<Aligned<[u8; 4096]>> = ConstStaticCell::new(Aligned([0; 4096]));
 
@@ -253,7 +256,7 @@ fn main() -> ! {
 
     // --- The whole loop: the depot scenario through the ring driver, the
     // quantised credence, the verdicts and the EKF, against its truth.
-    match replay::replay::<PARTICLES>(SCENARIO, &depot, echoloc::map::crc32(&DEPOT.0), &net, &syst, per_tick, None) {
+    match replay::replay::<PARTICLES>(SCENARIO, &depot, echoloc::map::crc32(&DEPOT.0), &net, &syst, per_tick, None, 1) {
         Some(r) => {
             let h = echoloc::scenario::Scenario::parse(SCENARIO).map(|s| *s.header()).ok();
             let bounds = h.map_or((0.0, 0.0), |h| (h.bound_position_m, h.bound_heading_deg));
@@ -276,6 +279,7 @@ fn main() -> ! {
         &syst,
         per_tick,
         Some(Start::Unknown),
+        FIND_SEED,
     );
     match find {
         Some(r) => ok &= replay::report_find(&r),

@@ -7,7 +7,7 @@
 
 use cortex_m::peripheral::SYST;
 use cortex_m_semihosting::hprintln;
-use echoloc::controller::replay::{check, localizer, run, scenario_odometry, ReplaySetup, ReplaySummary};
+use echoloc::controller::replay::{check, localizer, run, scenario_odometry, start, ReplaySetup, ReplaySummary};
 use echoloc::credence::net::CredenceNet;
 use echoloc::localize::{Mode, Start};
 use echoloc::map::{MapSource, MapView};
@@ -87,6 +87,7 @@ pub struct BoardReplay {
 /// Replays `bytes` (a scenario made on the map whose blob has CRC
 /// `map_crc`), printing what it finds. `None`, with a FAIL line, when the
 /// scenario is refused or the loop stops on an error.
+#[allow(clippy::too_many_arguments)]
 pub fn replay<const P: usize>(
     bytes: &[u8],
     map: &MapView<'_>,
@@ -94,7 +95,8 @@ pub fn replay<const P: usize>(
     net: &CredenceNet<'_>,
     syst: &Option<SYST>,
     per_tick: u32,
-    start: Option<Start>,
+    how: Option<Start>,
+    seed: u64,
 ) -> Option<BoardReplay> {
     let scenario = match Scenario::parse(bytes) {
         Ok(s) => s,
@@ -136,7 +138,7 @@ pub fn replay<const P: usize>(
     let mut cycles = [(0u64, 0u64, 0u64); 2];
     let mut in_cycle = 0u64;
     let mut t0 = ticks(syst);
-    let result = run_loop::<P>(&bench, map, &mounts, net, &setup, start, &mut |_, ended| {
+    let result = run_loop::<P>(&bench, map, &mounts, net, &setup, how, seed, &mut |_, ended| {
         let t = ticks(syst);
         let n = u64::from(elapsed(t0, t)) * u64::from(per_tick);
         total += n;
@@ -144,8 +146,14 @@ pub fn replay<const P: usize>(
         // The reading that closed a cycle paid for its end: the cycle so
         // far, plus this reading, is that cycle's cost.
         if let Some(mode) = ended {
-            let k = usize::from(mode == Mode::Searching);
-            if let Some(c) = cycles.get_mut(k) {
+            // Tracking and searching cycles apart (a lost cycle, where the
+            // particles wake and are drawn, is neither).
+            let k = match mode {
+                Mode::Tracking => Some(0),
+                Mode::Searching => Some(1),
+                Mode::Lost => None,
+            };
+            if let Some(c) = k.and_then(|k| cycles.get_mut(k)) {
                 let cost = in_cycle + n;
                 *c = (c.0 + 1, c.1 + cost, c.2.max(cost));
             }
@@ -177,19 +185,31 @@ pub fn replay<const P: usize>(
 /// The loop itself, never inlined, so that its frames lie below the
 /// caller's painted stack pointer.
 #[inline(never)]
+#[allow(clippy::too_many_arguments)]
 fn run_loop<const P: usize>(
     bench: &Bench<'_>,
     map: &MapView<'_>,
     mounts: &[Mount],
     net: &CredenceNet<'_>,
     setup: &ReplaySetup<TRANSDUCERS>,
-    start: Option<Start>,
+    how: Option<Start>,
+    seed: u64,
     tick: &mut dyn FnMut(u32, Option<Mode>),
 ) -> Result<ReplaySummary, echoloc::controller::replay::ReplayError> {
-    let loc = localizer::<P, TRANSDUCERS>(bench, setup, map.field(), start, 1)?;
-    run::<_, _, 4, TRANSDUCERS, P>(bench, map, map.field(), mounts, net, setup, loc, scenario_odometry, |c, _, _, s| {
-        tick(c.counts().readings, s.cycle_end.map(|e| e.localizer.mode))
-    })
+    // The localizer's one copy, built in place in this frame.
+    let mut loc = localizer::<P, TRANSDUCERS>(setup, seed);
+    start(&mut loc, bench, map.field(), how)?;
+    run::<_, _, 4, TRANSDUCERS, P>(
+        bench,
+        map,
+        map.field(),
+        mounts,
+        net,
+        setup,
+        &mut loc,
+        scenario_odometry,
+        |c, _, _, s| tick(c.counts().readings, s.cycle_end.map(|e| e.localizer.mode)),
+    )
 }
 
 /// `v` with six decimals, formatted with integers only: core's float

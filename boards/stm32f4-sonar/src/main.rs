@@ -34,9 +34,10 @@ use defmt_rtt as _;
 use echoloc::controller::{Controller, OdometrySample, OdometrySync};
 use echoloc::driver::{Error, Module, Ring, RingReading, Schedule};
 use echoloc::link::{CycleReport, FromController, Link, ReadingReport, ToController, PROTOCOL_VERSION};
+use echoloc::localize::{Localizer, LocalizerConfig, Start};
 use echoloc::map::{Aligned, MapSource, MapView};
 use echoloc::predict::PIONEER16;
-use echoloc::referencing::{Ekf, EkfConfig, Motion, Referencer};
+use echoloc::referencing::{EkfConfig, Motion};
 use heapless::Deque;
 use stm32f4_sonar::{
     credence, map_agrees, predict_params, Clock, EchoLevel, HostPort, SonarRing, Tim5Clock, MODULE_TIMING, RING_TIMING,
@@ -49,11 +50,15 @@ use stm32f4xx_hal::serial::SerialExt;
 
 /// The compiled office map (`echoloc-lab map import maps/office.geojson`),
 /// the same one the QEMU board runs; it stays in flash and is read in place.
-static BLOB: &Aligned<[u8]> = &Aligned(*include_bytes!("../../qemu-mps2-an386/office.map"));
+static BLOB: &Aligned<[u8]> = &Aligned(*include_bytes!("../office.map"));
 
 /// Where the filter starts until the robot's computer sends `SetPose`:
 /// x, y (m), φ (rad) in the office map, and the standard deviations.
 const START: [f32; 3] = [4.0, 4.0, 0.0];
+/// Particles of the localizer (issue #27).
+const PARTICLES: usize = 1024;
+/// Seed of its draws.
+const LOCALIZER_SEED: u64 = 1;
 const START_SIGMA: [f32; 3] = [0.1, 0.1, 0.05];
 
 /// Readings waiting for their odometry.
@@ -99,10 +104,14 @@ fn main() -> ! {
     };
     let params = predict_params(map.buffer_mm());
     let net = credence();
-    let Ok(ekf) = Ekf::new(START, START_SIGMA, EkfConfig::DEFAULT) else {
+    // The localizer's one copy (21 KiB at 1 024 particles), in this frame for
+    // the program's life; the controller borrows it.
+    let mut localizer: Localizer<PARTICLES> =
+        Localizer::new(LocalizerConfig::DEFAULT, EkfConfig::DEFAULT, VERDICTS, LOCALIZER_SEED);
+    if localizer.start(Start::Known { pose: START, sigma: START_SIGMA }, map.field()).is_err() {
         panic!("the start pose is refused");
-    };
-    let mut controller = Controller::new(&map, &PIONEER16, params, &net, Referencer::new(ekf, VERDICTS));
+    }
+    let mut controller = Controller::new(&map, map.field(), &PIONEER16, params, &net, &mut localizer);
     let mut odometry = OdometrySync::<16>::new();
     let mut queue: Deque<RingReading, QUEUE> = Deque::new();
     let (mut refused, mut stale) = (0u32, 0u32);
@@ -158,10 +167,17 @@ fn main() -> ! {
                     refused += 1;
                 }
             }
-            Ok(Some(ToController::SetPose { pose, sigma })) => match Ekf::new(pose, sigma, EkfConfig::DEFAULT) {
-                Ok(e) => controller.reset(e),
-                Err(_) => refused += 1,
-            },
+            Ok(Some(ToController::SetPose { pose, sigma })) => {
+                if controller.restart(Start::Known { pose, sigma }).is_err() {
+                    refused += 1;
+                }
+            }
+            Ok(Some(ToController::Search { around })) => {
+                let how = around.map_or(Start::Unknown, |(pose, sigma)| Start::Around { pose, sigma });
+                if controller.restart(how).is_err() {
+                    refused += 1;
+                }
+            }
             Ok(Some(ToController::End)) => {
                 let status = FromController::Status {
                     rx: link.rx_counts(),
@@ -192,8 +208,8 @@ fn main() -> ! {
 
 /// One reading through the controller; its report (and the cycle's, when
 /// it closed one) to the host; the LEDs per cycle.
-fn step<M, K, P>(
-    controller: &mut Controller<'_, M, K>,
+fn step<M, K, P, const N: usize>(
+    controller: &mut Controller<'_, M, K, N>,
     link: &mut Link<P>,
     u: &Motion,
     r: &RingReading,
@@ -214,7 +230,7 @@ fn step<M, K, P>(
             }
             let x = controller.state();
             defmt::debug!("t{} {}: pose ({}, {}, {})", r.transducer, s.report.verdict, x[0], x[1], x[2]);
-            let report = ReadingReport::new(r, &s, x, controller.covariance(), controller.is_lost());
+            let report = ReadingReport::new(r, &s, x, controller.covariance(), controller.mode());
             let _ = link.send(&FromController::Reading(report));
         }
         Err(e) => defmt::warn!("controller: {}", e),

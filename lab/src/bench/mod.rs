@@ -35,7 +35,7 @@ use echoloc::window::{collect_beacons, Strategy, Window, WindowParams};
 use parry2d_f64::math::{Pose, Vector};
 use parry2d_f64::query::{Ray, RayCast};
 use parry2d_f64::shape::{Compound, SharedShape};
-use serde_json::json;
+use serde_json::{json, Value};
 
 use crate::map::{read_compiled, read_shapes, view_of, AlignedBytes, LabError};
 
@@ -44,11 +44,14 @@ use crate::map::{read_compiled, read_shapes, view_of, AlignedBytes, LabError};
 pub struct BenchArgs {
     /// The map: a compiled blob (.map), or a ROS map_server .yaml or .geojson (imported with a 100 mm buffer).
     /// Give several for a scaling run (one result per map).
-    #[arg(long, required = true)]
+    #[arg(long, required_unless_present = "from_json")]
     map: Vec<PathBuf>,
-    /// With several maps: a PNG of time per window against the number of pieces, per method.
+    /// With several maps: a PNG (or SVG, by the name) of time per window against the number of pieces, per method.
     #[arg(long)]
     plot: Option<PathBuf>,
+    /// Draws --plot from an earlier run's JSON (`bench --json` of several maps) instead of benchmarking.
+    #[arg(long = "from-json", conflicts_with = "map", requires = "plot")]
+    from_json: Option<PathBuf>,
     /// Random free-space poses (one window each per half-angle).
     #[arg(long, default_value_t = 2000)]
     poses: usize,
@@ -192,9 +195,23 @@ pub fn bench_cmd(a: &BenchArgs) -> Result<String, LabError> {
         return Err(LabError("--half-angles-deg: each in (0, 90)".into()));
     }
     if let Some(p) = &a.plot {
-        if p.extension().is_none_or(|e| e != "png") {
-            return Err(LabError(format!("--plot {}: must end in .png", p.display())));
+        if p.extension().is_none_or(|e| e != "png" && e != "svg") {
+            return Err(LabError(format!("--plot {}: must end in .png or .svg", p.display())));
         }
+    }
+    if let (Some(j), Some(p)) = (&a.from_json, &a.plot) {
+        let text = std::fs::read_to_string(j).map_err(|e| LabError(format!("{}: {e}", j.display())))?;
+        let v: Value = serde_json::from_str(&text).map_err(|e| LabError(format!("{}: not JSON: {e}", j.display())))?;
+        let results = match v.get("maps").and_then(Value::as_array) {
+            Some(m) => m.clone(),
+            None => vec![v.clone()],
+        };
+        if results.iter().all(|r| r["methods"].as_array().is_none_or(|m| m.is_empty())) {
+            return Err(LabError(format!("{}: no \"methods\" with results (bench --json's form)", j.display())));
+        }
+        let bytes = plot::scaling_as(&results, crate::figure::Format::of(p)).map_err(LabError)?;
+        crate::map::write_atomically(p, &bytes)?;
+        return Ok(json!({"plot": p.display().to_string(), "maps": results.len()}).to_string());
     }
     let results = a
         .map
@@ -203,7 +220,7 @@ pub fn bench_cmd(a: &BenchArgs) -> Result<String, LabError> {
         .map(|(i, m)| bench_map(m, a, if i == 0 { a.export_windows.as_deref() } else { None }))
         .collect::<Result<Vec<_>, _>>()?;
     if let Some(p) = &a.plot {
-        let png = plot::scaling(&results);
+        let png = plot::scaling_as(&results, crate::figure::Format::of(p)).map_err(LabError)?;
         std::fs::write(p, png).map_err(|e| LabError(format!("--plot {}: {e}", p.display())))?;
     }
     let v =

@@ -29,6 +29,7 @@ use clap::Args;
 use echoloc::credence::net::CredenceNet;
 use serde_json::{json, Value};
 
+use crate::figure::{encode, Format};
 pub use error::CredenceError;
 use train::{Model, Sample};
 
@@ -70,6 +71,9 @@ pub struct TrainArgs {
     /// Write PNG figures of the observed, net and Gaussian κ surfaces into this directory.
     #[arg(long)]
     pub figures: Option<PathBuf>,
+    /// The figures as SVG instead of PNG.
+    #[arg(long, requires = "figures")]
+    pub svg: bool,
     /// Skip the leave-one-day-out evaluation (train the final net only).
     #[arg(long = "no-cv")]
     pub no_cv: bool,
@@ -366,26 +370,28 @@ pub fn train_cmd(a: &TrainArgs) -> Result<String, CredenceError> {
         let gaussf = |r: f64, t: f64| Some(gauss.eval(r, t));
         let mut written = Vec::new();
         let days = sets.len();
+        let fig = |p: &std::path::Path, bytes: Result<Vec<u8>, String>| {
+            bytes.map_err(|e| CredenceError::io(p, std::io::Error::other(e)))
+        };
+        let (format, ext) = if a.svg { (Format::Svg, "svg") } else { (Format::Png, "png") };
         for (file, title, f) in [
-            ("kappa_observed.png", format!("OBSERVED κ, MEAN OF {days} DAYS"), &observed as plot::Surface<'_>),
-            ("kappa_net.png", "2-10-1 NET κ (QUANTISED, FIRMWARE)".to_string(), &netf),
-            ("kappa_gaussian.png", "SINGLE-LOBE GAUSSIAN κ (FITTED)".to_string(), &gaussf),
+            ("kappa_observed", format!("Observed κ, mean of {days} days"), &observed as plot::Surface<'_>),
+            ("kappa_net", "2-10-1 net κ (quantised, firmware)".to_string(), &netf),
+            ("kappa_gaussian", "Single-lobe Gaussian κ (fitted)".to_string(), &gaussf),
         ] {
-            let p = dir.join(file);
-            outputs.add(p.clone(), plot::surface_figure(&title, f).png(&p)?);
+            let p = dir.join(format!("{file}.{ext}"));
+            outputs.add(p.clone(), fig(&p, encode(&plot::surface_figure(&title, f), format))?);
             written.push(p.display().to_string());
         }
-        let p = dir.join("kappa_profiles.png");
-        let profiles = plot::profile_figure(
-            "κ AGAINST θ: OBSERVED (DOTS), NET, GAUSSIAN",
-            &[1000, 2500, 4000],
-            &[
-                plot::Series { label: "OBSERVED", colour: [0, 0, 0], kappa: &observed, dots: true },
-                plot::Series { label: "NET (FIRMWARE)", colour: [214, 39, 40], kappa: &netf, dots: false },
-                plot::Series { label: "GAUSSIAN", colour: [31, 119, 180], kappa: &gaussf, dots: false },
-            ],
-        );
-        outputs.add(p.clone(), profiles.png(&p)?);
+        let p = dir.join(format!("kappa_profiles.{ext}"));
+        let series = [
+            plot::Series { label: "observed", colour: [0, 0, 0], kappa: &observed, dots: true },
+            plot::Series { label: "net (firmware)", colour: [214, 39, 40], kappa: &netf, dots: false },
+            plot::Series { label: "Gaussian", colour: [31, 119, 180], kappa: &gaussf, dots: false },
+        ];
+        let profiles =
+            plot::profile_figure("κ against θ: observed (dots), net, Gaussian", &[1000, 2500, 4000], &series);
+        outputs.add(p.clone(), fig(&p, encode(&profiles, format))?);
         written.push(p.display().to_string());
         report.insert("figures".into(), json!(written));
     }

@@ -21,6 +21,7 @@ mod view_identity;
 use std::fmt;
 use std::path::{Path, PathBuf};
 
+use crate::figure::Format;
 use clap::{Subcommand, ValueEnum};
 use echoloc::geometry::{Point, COORD_MAX};
 use echoloc::map::{MapSource, MapView, StandardMap};
@@ -289,11 +290,11 @@ pub fn run(cmd: MapCmd) -> Result<String, LabError> {
             let (blob, summary, src) = import(&input, buffer_mm, cell_mm, &opt)?;
             // Everything is computed before anything is written.
             let png = match &preview {
-                Some(_) => {
+                Some(p) => {
                     let aligned = AlignedBytes::new(&blob);
                     let m = MapView::new(aligned.bytes())
                         .map_err(|e| LabError(format!("{}: the new blob does not validate: {e:?}", out.display())))?;
-                    Some(render::preview(&m, src.grid.as_ref(), unknown))
+                    Some(render::preview_as(&m, src.grid.as_ref(), unknown, Format::of(p)).map_err(LabError)?)
                 }
                 None => None,
             };
@@ -341,7 +342,7 @@ pub fn run(cmd: MapCmd) -> Result<String, LabError> {
             let a = read_compiled(&map)?;
             let m = view_of(&a, &map)?;
             let grid = grid.map(|g| ros::load(&g)).transpose()?;
-            let png = render::preview(&m, grid.as_ref(), unknown);
+            let png = render::preview_as(&m, grid.as_ref(), unknown, Format::of(&out)).map_err(LabError)?;
             write_atomically(&out, &png)?;
             Ok(serde_json::json!({ "out": out.display().to_string(), "bytes": png.len() }).to_string())
         }

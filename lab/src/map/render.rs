@@ -1,8 +1,13 @@
-//! Back out of the blob: GeoJSON of the true pieces, and a PNG preview of
-//! the pieces over the occupancy grid they came from.
+//! Back out of the blob: GeoJSON of the true pieces, and a preview of the
+//! pieces over the occupancy grid they came from (drawn with `plotters`,
+//! [`crate::figure`]), whose layers the simulator's figures draw on too.
 
 use echoloc::map::{MapSource, ObstacleKind};
+use plotters::coord::types::RangedCoordf64;
+use plotters::prelude::*;
 use serde_json::{json, Value};
+
+use crate::figure::{encode, err, legend, rgb, Figure, Format, Root, FONT};
 
 use super::ros::{Cell, Grid};
 use super::Unknown;
@@ -44,105 +49,6 @@ pub fn geojson<M: MapSource + ?Sized>(m: &M) -> Value {
     json!({ "type": "FeatureCollection", "features": feats })
 }
 
-/// An RGB canvas with a map-frame transform.
-/// A picture in map millimetres (y up), for previews and the simulator's figures.
-pub struct Canvas {
-    w: usize,
-    h: usize,
-    px: Vec<[u8; 3]>,
-    /// Map x (mm) of the left edge, map y (mm) of the top edge, mm per pixel.
-    x0: f64,
-    y1: f64,
-    mm_per_px: f64,
-}
-
-impl Canvas {
-    fn to_px(&self, x: f64, y: f64) -> (f64, f64) {
-        ((x - self.x0) / self.mm_per_px, (self.y1 - y) / self.mm_per_px)
-    }
-
-    fn blend(&mut self, x: i64, y: i64, c: [u8; 3], a: f64) {
-        if x < 0 || y < 0 || x >= self.w as i64 || y >= self.h as i64 {
-            return;
-        }
-        let p = &mut self.px[y as usize * self.w + x as usize];
-        for k in 0..3 {
-            p[k] = (p[k] as f64 * (1.0 - a) + c[k] as f64 * a).round() as u8;
-        }
-    }
-
-    /// A line in map mm, `width` pixels wide.
-    pub fn line(&mut self, a: (f64, f64), b: (f64, f64), c: [u8; 3], width: i64) {
-        let (p, q) = (self.to_px(a.0, a.1), self.to_px(b.0, b.1));
-        let n = ((q.0 - p.0).abs().max((q.1 - p.1).abs()).ceil() as usize).max(1);
-        let r = width / 2;
-        for s in 0..=n {
-            let t = s as f64 / n as f64;
-            let (x, y) = ((p.0 + (q.0 - p.0) * t).floor() as i64, (p.1 + (q.1 - p.1) * t).floor() as i64);
-            for dx in -r..width - r {
-                for dy in -r..width - r {
-                    self.blend(x + dx, y + dy, c, 1.0);
-                }
-            }
-        }
-    }
-
-    /// Fills a counter-clockwise convex polygon given in map mm.
-    pub fn fill_convex(&mut self, v: &[(f64, f64)], c: [u8; 3], a: f64) {
-        let p: Vec<(f64, f64)> = v.iter().map(|&(x, y)| self.to_px(x, y)).collect();
-        let (xmin, xmax) = p.iter().fold((f64::MAX, f64::MIN), |(lo, hi), q| (lo.min(q.0), hi.max(q.0)));
-        let (ymin, ymax) = p.iter().fold((f64::MAX, f64::MIN), |(lo, hi), q| (lo.min(q.1), hi.max(q.1)));
-        for y in ymin.floor().max(0.0) as i64..=ymax.ceil().min(self.h as f64) as i64 {
-            for x in xmin.floor().max(0.0) as i64..=xmax.ceil().min(self.w as f64) as i64 {
-                let (cx, cy) = (x as f64 + 0.5, y as f64 + 0.5);
-                // Pixel rows grow downwards: counter-clockwise in the map is
-                // clockwise here, so inside is right of every edge.
-                let inside = (0..p.len()).all(|i| {
-                    let (a, b) = (p[i], p[(i + 1) % p.len()]);
-                    (b.0 - a.0) * (cy - a.1) - (b.1 - a.1) * (cx - a.0) <= 0.0
-                });
-                if inside {
-                    self.blend(x, y, c, a);
-                }
-            }
-        }
-    }
-
-    /// Text at pixel (x, y) top-left, `scale` pixels per font dot.
-    pub fn text(&mut self, x: i64, y: i64, s: &str, scale: i64, c: [u8; 3]) {
-        for (k, ch) in s.chars().enumerate() {
-            let g = crate::credence::plot::glyph(ch);
-            for (row, bits) in g.iter().enumerate() {
-                for col in 0..5 {
-                    if bits & (0x10 >> col) != 0 {
-                        for dy in 0..scale {
-                            for dx in 0..scale {
-                                let px = x + (k as i64 * 6 + col) * scale + dx;
-                                self.blend(px, y + row as i64 * scale + dy, c, 1.0);
-                            }
-                        }
-                    }
-                }
-            }
-        }
-    }
-
-    /// The canvas as an RGB PNG.
-    pub fn png(&self) -> Vec<u8> {
-        let mut out = Vec::new();
-        let mut enc = png::Encoder::new(&mut out, self.w as u32, self.h as u32);
-        enc.set_color(png::ColorType::Rgb);
-        enc.set_depth(png::BitDepth::Eight);
-        // Writing into a Vec cannot fail for a well-sized buffer.
-        if let Ok(mut wr) = enc.write_header() {
-            let data: Vec<u8> = self.px.iter().flatten().copied().collect();
-            let _ = wr.write_image_data(&data);
-        }
-        out
-    }
-}
-
-const FREE: [u8; 3] = [255, 255, 255];
 const UNKNOWN: [u8; 3] = [205, 205, 205];
 const OCCUPIED: [u8; 3] = [40, 40, 40];
 const PIECE_FILL: [u8; 3] = [255, 120, 0];
@@ -150,121 +56,215 @@ const PIECE_EDGE: [u8; 3] = [200, 60, 0];
 const OUTLINE: [u8; 3] = [0, 90, 220];
 const BUFFER: [u8; 3] = [0, 170, 80];
 
+/// A map chart: map coordinates in metres, x right, y up, equal scale.
+pub type MapChart<'a, DB> = ChartContext<'a, DB, Cartesian2d<RangedCoordf64, RangedCoordf64>>;
+
+/// What a map picture shows and where: the extent (m) and the grid under it.
+pub struct MapLayers<'a, M: MapSource + ?Sized> {
+    /// The map.
+    pub map: &'a M,
+    /// The occupancy grid it came from, drawn under it.
+    pub grid: Option<&'a Grid>,
+    /// What the grid's unknown cells are drawn as.
+    pub unknown: Unknown,
+    /// x0, x1, y0, y1, metres.
+    pub extent: [f64; 4],
+}
+
+impl<'a, M: MapSource + ?Sized> MapLayers<'a, M> {
+    /// The map (and grid) cropped to the known cells and the map's pieces,
+    /// with a margin: 10 cells on a grid, else 1 m.
+    pub fn new(map: &'a M, grid: Option<&'a Grid>, unknown: Unknown) -> Self {
+        let pieces =
+            map.bounds_of_pieces().map(|b| [metres(b.min.x), metres(b.max.x), metres(b.min.y), metres(b.max.y)]);
+        let extent = match grid {
+            Some(g) => {
+                let res = g.yaml.resolution;
+                let (mut c0, mut c1, mut r0, mut r1) = (usize::MAX, 0, usize::MAX, 0);
+                for r in 0..g.height {
+                    for c in 0..g.width {
+                        if g.at(c, r) != Cell::Unknown {
+                            (c0, c1, r0, r1) = (c0.min(c), c1.max(c), r0.min(r), r1.max(r));
+                        }
+                    }
+                }
+                if c0 > c1 {
+                    (c0, c1, r0, r1) = (0, g.width - 1, 0, g.height - 1);
+                }
+                let (ox, oy) = (g.yaml.origin[0], g.yaml.origin[1]);
+                let mut e = [
+                    ox + c0 as f64 * res,
+                    ox + (c1 + 1) as f64 * res,
+                    oy + (g.height - 1 - r1) as f64 * res,
+                    oy + (g.height - r0) as f64 * res,
+                ];
+                if let Some(p) = pieces {
+                    e = [e[0].min(p[0]), e[1].max(p[1]), e[2].min(p[2]), e[3].max(p[3])];
+                }
+                [e[0] - 10.0 * res, e[1] + 10.0 * res, e[2] - 10.0 * res, e[3] + 10.0 * res]
+            }
+            None => pieces.map_or([0.0, 1.0, 0.0, 1.0], |p| [p[0] - 1.0, p[1] + 1.0, p[2] - 1.0, p[3] + 1.0]),
+        };
+        Self { map, grid, unknown, extent }
+    }
+
+    /// A figure's size for a plot area at most `max` pixels wide or high,
+    /// with room for the axes, a title and a legend panel `legend_w` wide.
+    pub fn size(&self, max: u32, legend_w: u32) -> (u32, u32, u32, u32) {
+        let [x0, x1, y0, y1] = self.extent;
+        let (w, h) = ((x1 - x0).max(1e-3), (y1 - y0).max(1e-3));
+        let s = f64::from(max) / w.max(h);
+        let (pw, ph) = ((w * s).round().max(200.0) as u32, (h * s).round().max(200.0) as u32);
+        (pw + 90 + legend_w, ph + 110, pw, ph)
+    }
+
+    /// Builds the chart on `area` (axes in metres, a title) and draws the
+    /// grid, the pieces, their buffers and the outlines; callers draw on top.
+    pub fn chart<'b, DB: DrawingBackend>(&self, area: &'b Root<DB>, title: &str) -> Result<MapChart<'b, DB>, String> {
+        let [x0, x1, y0, y1] = self.extent;
+        let mut chart = ChartBuilder::on(area)
+            .caption(title, (FONT, 22))
+            .margin(12)
+            .x_label_area_size(44)
+            .y_label_area_size(60)
+            .build_cartesian_2d(x0..x1, y0..y1)
+            .map_err(err)?;
+        chart
+            .configure_mesh()
+            .disable_mesh()
+            .x_desc("x (m)")
+            .y_desc("y (m)")
+            .label_style((FONT, 15))
+            .axis_desc_style((FONT, 16))
+            .draw()
+            .map_err(err)?;
+        if let Some(g) = self.grid {
+            // Runs of occupied (and unknown) cells along each row.
+            let res = g.yaml.resolution;
+            let (ox, oy) = (g.yaml.origin[0], g.yaml.origin[1]);
+            let colour = |c: Cell| match (c, self.unknown) {
+                (Cell::Occupied, _) | (Cell::Unknown, Unknown::Occupied) => Some(OCCUPIED),
+                (Cell::Free, _) => None,
+                (Cell::Unknown, Unknown::Free) => Some(UNKNOWN),
+            };
+            let mut runs = Vec::new();
+            for r in 0..g.height {
+                let y = oy + (g.height - 1 - r) as f64 * res;
+                if y + res < y0 || y > y1 {
+                    continue;
+                }
+                let mut c = 0;
+                while c < g.width {
+                    let col = colour(g.at(c, r));
+                    let start = c;
+                    while c < g.width && colour(g.at(c, r)) == col {
+                        c += 1;
+                    }
+                    if let Some(col) = col {
+                        let (a, b) = (ox + start as f64 * res, ox + c as f64 * res);
+                        if b >= x0 && a <= x1 {
+                            runs.push(Rectangle::new([(a.max(x0), y), (b.min(x1), y + res)], rgb(col).filled()));
+                        }
+                    }
+                }
+            }
+            chart.draw_series(runs).map_err(err)?;
+        }
+        let f = |p: &echoloc::geometry::Point| (metres(p.x), metres(p.y));
+        let m = self.map;
+        chart
+            .draw_series(m.pieces_iter().filter(|p| p.shape.vertices().len() >= 3).map(|p| {
+                Polygon::new(p.shape.vertices().iter().map(f).collect::<Vec<_>>(), rgb(PIECE_FILL).mix(0.35).filled())
+            }))
+            .map_err(err)?;
+        chart
+            .draw_series(m.pieces_iter().map(|p| {
+                let mut b: Vec<(f64, f64)> = p.buffered.vertices().iter().map(f).collect();
+                if let Some(&first) = b.first() {
+                    b.push(first);
+                }
+                PathElement::new(b, rgb(BUFFER).mix(0.8).stroke_width(1))
+            }))
+            .map_err(err)?;
+        let mut lines = Vec::new();
+        for o in m.obstacles_iter() {
+            let pieces: Vec<Vec<(i32, i32)>> = (o.first_piece..o.first_piece + o.piece_count)
+                .filter_map(|id| m.piece(id))
+                .map(|p| p.shape.vertices().iter().map(|q| (q.x, q.y)).collect())
+                .collect();
+            // Edges shared (in opposite directions) by two pieces are seams.
+            let mut edges = std::collections::HashSet::new();
+            for v in &pieces {
+                for i in 0..v.len() {
+                    edges.insert((v[i], v[(i + 1) % v.len()]));
+                }
+            }
+            for v in &pieces {
+                for i in 0..v.len() {
+                    let (a, b) = (v[i], v[(i + 1) % v.len()]);
+                    let seam = v.len() > 2 && edges.contains(&(b, a));
+                    let c = if seam { PIECE_EDGE } else { OUTLINE };
+                    let (pa, pb) = ((metres(a.0), metres(a.1)), (metres(b.0), metres(b.1)));
+                    lines.push(PathElement::new(vec![pa, pb], rgb(c).stroke_width(1)));
+                }
+            }
+        }
+        chart.draw_series(lines).map_err(err)?;
+        Ok(chart)
+    }
+
+    /// The legend entries of [`chart`](Self::chart)'s layers.
+    pub fn legend(&self) -> Vec<(&'static str, RGBColor)> {
+        let mut v = vec![
+            ("convex pieces", rgb(PIECE_FILL)),
+            ("seams", rgb(PIECE_EDGE)),
+            ("true outline", rgb(OUTLINE)),
+            ("C-space buffer", rgb(BUFFER)),
+        ];
+        if self.grid.is_some() {
+            v.push(("occupied cells", rgb(OCCUPIED)));
+            if self.unknown == Unknown::Free {
+                v.push(("unknown cells", rgb(UNKNOWN)));
+            }
+        }
+        v
+    }
+}
+
+/// The preview figure.
+struct Preview<'a, M: MapSource + ?Sized>(MapLayers<'a, M>, (u32, u32, u32, u32));
+
+impl<M: MapSource + ?Sized> Figure for Preview<'_, M> {
+    fn size(&self) -> (u32, u32) {
+        (self.1 .0, self.1 .1)
+    }
+
+    fn draw<DB: DrawingBackend>(&self, root: &Root<DB>) -> Result<(), String> {
+        let (plot, side) = root.split_horizontally(self.1 .0 - LEGEND_W);
+        self.0.chart(&plot, "Map: convex pieces, buffers and outlines")?;
+        legend(&side.margin(60, 0, 0, 0), &self.0.legend(), false)
+    }
+}
+
+const LEGEND_W: u32 = 220;
+
 /// The preview: the grid (occupied dark, free white, unknown grey) under the
 /// convex pieces (translucent orange, seams in dark orange) with each
 /// piece's buffered outline (thin green) and the obstacles' true outline
 /// (blue: edges that no other piece of the obstacle shares). Without a grid
-/// the map's own bounds, with a 1 m margin, on white.
+/// the map's own bounds, with a 1 m margin, on white. A PNG.
 pub fn preview<M: MapSource + ?Sized>(m: &M, grid: Option<&Grid>, unknown: Unknown) -> Vec<u8> {
-    preview_canvas(m, grid, unknown).png()
+    preview_as(m, grid, unknown, Format::Png).unwrap_or_default()
 }
 
-/// [`preview`] before it is encoded, to draw on.
-pub fn preview_canvas<M: MapSource + ?Sized>(m: &M, grid: Option<&Grid>, unknown: Unknown) -> Canvas {
-    let mut cv = match grid {
-        Some(g) => {
-            let res = g.yaml.resolution * 1000.0;
-            // Crop to the known cells and the map, with a margin of 10 cells.
-            let (mut c0, mut c1, mut r0, mut r1) = (usize::MAX, 0, usize::MAX, 0);
-            for r in 0..g.height {
-                for c in 0..g.width {
-                    if g.at(c, r) != Cell::Unknown {
-                        (c0, c1, r0, r1) = (c0.min(c), c1.max(c), r0.min(r), r1.max(r));
-                    }
-                }
-            }
-            if let Some(b) = m.bounds_of_pieces() {
-                let col = |x: i32| ((x as f64 - g.yaml.origin[0] * 1000.0) / res).floor().max(0.0) as usize;
-                let row =
-                    |y: i32| (g.height as f64 - (y as f64 - g.yaml.origin[1] * 1000.0) / res).floor().max(0.0) as usize;
-                (c0, c1) = (c0.min(col(b.min.x)), c1.max(col(b.max.x)));
-                (r0, r1) = (r0.min(row(b.max.y)), r1.max(row(b.min.y)));
-            }
-            if c0 > c1 {
-                (c0, c1, r0, r1) = (0, g.width - 1, 0, g.height - 1);
-            }
-            let (c0, r0) = (c0.saturating_sub(10), r0.saturating_sub(10));
-            let (c1, r1) = ((c1 + 10).min(g.width - 1), (r1 + 10).min(g.height - 1));
-            let (gw, gh) = (c1 + 1 - c0, r1 + 1 - r0);
-            let s = (1800 / gw.max(gh)).clamp(1, 8);
-            let (w, h) = (gw * s, gh * s);
-            let mut px = vec![FREE; w * h];
-            for r in r0..=r1 {
-                for c in c0..=c1 {
-                    let col = match (g.at(c, r), unknown) {
-                        (Cell::Occupied, _) | (Cell::Unknown, Unknown::Occupied) => OCCUPIED,
-                        (Cell::Free, _) => FREE,
-                        (Cell::Unknown, Unknown::Free) => UNKNOWN,
-                    };
-                    for dy in 0..s {
-                        px[((r - r0) * s + dy) * w + (c - c0) * s..][..s].fill(col);
-                    }
-                }
-            }
-            Canvas {
-                w,
-                h,
-                px,
-                x0: g.yaml.origin[0] * 1000.0 + c0 as f64 * res,
-                y1: g.yaml.origin[1] * 1000.0 + (g.height - r0) as f64 * res,
-                mm_per_px: res / s as f64,
-            }
-        }
-        None => {
-            let b = m.bounds_of_pieces();
-            let (x0, y0, x1, y1) = b.map_or((0.0, 0.0, 1.0, 1.0), |b| {
-                (b.min.x as f64 - 1000.0, b.min.y as f64 - 1000.0, b.max.x as f64 + 1000.0, b.max.y as f64 + 1000.0)
-            });
-            let mm_per_px = ((x1 - x0).max(y1 - y0) / 1200.0).max(1.0);
-            let (w, h) = (((x1 - x0) / mm_per_px).ceil() as usize, ((y1 - y0) / mm_per_px).ceil() as usize);
-            Canvas { w, h, px: vec![FREE; w * h], x0, y1, mm_per_px }
-        }
-    };
-    let f = |p: &echoloc::geometry::Point| (p.x as f64, p.y as f64);
-    for p in m.pieces_iter() {
-        let v: Vec<(f64, f64)> = p.shape.vertices().iter().map(f).collect();
-        if v.len() >= 3 {
-            cv.fill_convex(&v, PIECE_FILL, 0.35);
-        }
-    }
-    for p in m.pieces_iter() {
-        let b: Vec<(f64, f64)> = p.buffered.vertices().iter().map(f).collect();
-        for i in 0..b.len() {
-            let (a, c) = (b[i], b[(i + 1) % b.len()]);
-            let (pa, pc) = (cv.to_px(a.0, a.1), cv.to_px(a.0 + (c.0 - a.0), a.1 + (c.1 - a.1)));
-            // Dotted: every other 3 px.
-            let n = ((pc.0 - pa.0).hypot(pc.1 - pa.1) / 3.0).ceil() as usize;
-            for k in (0..n).step_by(2) {
-                let (t0, t1) = (k as f64 / n as f64, ((k + 1) as f64 / n as f64).min(1.0));
-                cv.line(
-                    (a.0 + (c.0 - a.0) * t0, a.1 + (c.1 - a.1) * t0),
-                    (a.0 + (c.0 - a.0) * t1, a.1 + (c.1 - a.1) * t1),
-                    BUFFER,
-                    1,
-                );
-            }
-        }
-    }
-    for o in m.obstacles_iter() {
-        let pieces: Vec<Vec<(i32, i32)>> = (o.first_piece..o.first_piece + o.piece_count)
-            .filter_map(|id| m.piece(id))
-            .map(|p| p.shape.vertices().iter().map(|q| (q.x, q.y)).collect())
-            .collect();
-        // Edges shared (in opposite directions) by two pieces are seams.
-        let mut edges = std::collections::HashMap::new();
-        for v in &pieces {
-            for i in 0..v.len() {
-                *edges.entry((v[i], v[(i + 1) % v.len()])).or_insert(0) += 1;
-            }
-        }
-        for v in &pieces {
-            for i in 0..v.len() {
-                let (a, b) = (v[i], v[(i + 1) % v.len()]);
-                let seam = v.len() > 2 && edges.contains_key(&(b, a));
-                let (c, w) = if seam { (PIECE_EDGE, 1) } else { (OUTLINE, 1) };
-                cv.line((a.0 as f64, a.1 as f64), (b.0 as f64, b.1 as f64), c, w);
-            }
-        }
-    }
-    cv
+/// [`preview`] as PNG or SVG.
+pub fn preview_as<M: MapSource + ?Sized>(
+    m: &M,
+    grid: Option<&Grid>,
+    unknown: Unknown,
+    format: Format,
+) -> Result<Vec<u8>, String> {
+    let layers = MapLayers::new(m, grid, unknown);
+    let size = layers.size(1300, LEGEND_W);
+    encode(&Preview(layers, size), format)
 }

@@ -1,14 +1,17 @@
 //! ROS map_server maps: the YAML description and its PGM or PNG image,
 //! classified into free, occupied and unknown cells by map_server's rules.
 //!
-//! The YAML is flat (`key: value` lines, `origin` a flow list), so a small
-//! parser reads it; every problem names the YAML file and the field. PGM
+//! The YAML is read by a YAML 1.2 parser (`saphyr`, which keeps each node's
+//! line), so any YAML spelling of map_server's keys reads; every problem names
+//! the YAML file, the key and its line. PGM
 //! (P5 binary and P2 ASCII, up to 8 bits) is read here; PNG (1–8 bits,
 //! grey, grey+alpha, RGB, RGBA, palette) with the `png` crate. 16-bit images
 //! are refused (map_server reads 8-bit data).
 
 use std::fs;
 use std::path::{Path, PathBuf};
+
+use saphyr::{LoadableYamlNode, MarkedYaml, Scalar, YamlData};
 
 use super::ImportError;
 
@@ -85,114 +88,163 @@ fn field(path: &Path, field: &str, problem: impl Into<String>) -> ImportError {
     ImportError::Field { path: path.to_path_buf(), field: field.to_string(), problem: problem.into() }
 }
 
-/// Parses the YAML text of the map at `path` (used in messages and to
-/// resolve `image`).
-pub fn parse_yaml(path: &Path, text: &str) -> Result<MapYaml, ImportError> {
-    let mut kv: Vec<(String, String, usize)> = Vec::new();
-    for (ln, raw) in text.lines().enumerate() {
-        let line = strip_comment(raw).trim_end();
-        if line.trim().is_empty() || line.trim() == "---" {
-            continue;
-        }
-        let Some((k, v)) = line.split_once(':') else {
-            return Err(field(
-                path,
-                &format!("line {}", ln + 1),
-                format!("expected `key: value`, found {:?}", raw.trim()),
-            ));
-        };
-        let k = k.trim().to_string();
-        if kv.iter().any(|(q, _, _)| *q == k) {
-            return Err(field(path, &k, format!("given twice (line {})", ln + 1)));
-        }
-        kv.push((k, unquote(v.trim()).to_string(), ln + 1));
+/// A value of the YAML and the line it is on (1 is the first).
+type Node<'a, 'b> = (&'b MarkedYaml<'a>, usize);
+
+fn scalar_text(n: &MarkedYaml) -> String {
+    match &n.data {
+        YamlData::Value(Scalar::String(s)) => format!("{s:?}"),
+        YamlData::Value(Scalar::Integer(i)) => i.to_string(),
+        YamlData::Value(Scalar::FloatingPoint(f)) => f.to_string(),
+        YamlData::Value(Scalar::Boolean(b)) => b.to_string(),
+        YamlData::Value(Scalar::Null) => "nothing".into(),
+        YamlData::Sequence(_) => "a list".into(),
+        YamlData::Mapping(_) => "a mapping".into(),
+        _ => "something else".into(),
     }
-    let get = |k: &str| kv.iter().find(|(q, _, _)| q == k).map(|(_, v, _)| v.as_str());
+}
+
+/// A YAML number (an integer or a float; map_server reads both as double).
+fn as_number(n: &MarkedYaml) -> Option<f64> {
+    match &n.data {
+        YamlData::Value(Scalar::Integer(i)) => Some(*i as f64),
+        YamlData::Value(Scalar::FloatingPoint(f)) => Some(f.into_inner()).filter(|x| x.is_finite()),
+        _ => None,
+    }
+}
+
+/// The parser notices some mistakes only on a later line (a line without
+/// `:` is found out at the next key, or at the end): the last line at or
+/// before `line` that has more than blanks and a comment.
+fn content_line(text: &str, line: usize) -> usize {
+    let lines: Vec<&str> = text.lines().collect();
+    (1..=line.min(lines.len()))
+        .rev()
+        .find(|&n| {
+            let t = lines[n - 1].trim();
+            !t.is_empty() && !t.starts_with('#')
+        })
+        .unwrap_or(line)
+}
+
+/// Parses the YAML text of the map at `path` (used in messages and to
+/// resolve `image`) with a YAML 1.2 parser (`saphyr`): any YAML form of
+/// map_server's keys (flow lists over several lines, quoted names, block
+/// lists, comments). Every problem names the file, the key and its line.
+pub fn parse_yaml(path: &Path, text: &str) -> Result<MapYaml, ImportError> {
+    let docs = MarkedYaml::load_from_str(text).map_err(|e| {
+        let line = content_line(text, e.marker().line());
+        field(path, &format!("line {line}"), format!("not YAML: {} (expected `key: value` lines)", e.info()))
+    })?;
+    let top = docs.first().ok_or_else(|| field(path, "image", "missing: the file is empty"))?;
+    let YamlData::Mapping(map) = &top.data else {
+        return Err(field(
+            path,
+            &format!("line {}", top.span.start.line()),
+            format!("expected `key: value` lines (map_server's keys), found {}", scalar_text(top)),
+        ));
+    };
+    let mut kv: Vec<(String, &MarkedYaml)> = Vec::new();
+    for (k, v) in map {
+        match &k.data {
+            YamlData::Value(Scalar::String(s)) => kv.push((s.to_string(), v)),
+            _ => {
+                return Err(field(
+                    path,
+                    &format!("line {}", k.span.start.line()),
+                    format!("a key must be a name, found {}", scalar_text(k)),
+                ))
+            }
+        }
+    }
+    let get = |k: &str| kv.iter().find(|(q, _)| q == k).map(|(_, v)| (*v, v.span.start.line()));
     let need = |k: &str| get(k).ok_or_else(|| field(path, k, "missing (required by map_server)"));
-    let number = |k: &str, v: &str| -> Result<f64, ImportError> {
-        v.parse::<f64>()
-            .ok()
-            .filter(|x| x.is_finite())
-            .ok_or_else(|| field(path, k, format!("expected a number, found {v:?}")))
+    let number = |k: &str, (v, line): Node| -> Result<f64, ImportError> {
+        as_number(v).ok_or_else(|| field(path, k, format!("expected a number, found {} (line {line})", scalar_text(v))))
     };
 
-    let image = need("image")?;
-    if image.is_empty() {
-        return Err(field(path, "image", "empty"));
-    }
+    let (img, line) = need("image")?;
+    let image = match &img.data {
+        YamlData::Value(Scalar::String(s)) if !s.is_empty() => s.to_string(),
+        YamlData::Value(Scalar::String(_)) => return Err(field(path, "image", format!("empty (line {line})"))),
+        _ => {
+            return Err(field(path, "image", format!("expected a file name, found {} (line {line})", scalar_text(img))))
+        }
+    };
     let image = path.parent().unwrap_or(Path::new(".")).join(image);
-    let resolution = number("resolution", need("resolution")?)?;
+    let (res, line) = need("resolution")?;
+    let resolution = number("resolution", (res, line))?;
     if resolution < 0.002 {
-        return Err(field(path, "resolution", format!("{resolution} m per cell: must be at least 0.002 (2 mm)")));
+        return Err(field(
+            path,
+            "resolution",
+            format!("{resolution} m per cell: must be at least 0.002 (2 mm) (line {line})"),
+        ));
     }
-    let o = need("origin")?;
-    let inner = o
-        .strip_prefix('[')
-        .and_then(|s| s.strip_suffix(']'))
-        .ok_or_else(|| field(path, "origin", format!("expected [x, y, yaw], found {o:?}")))?;
-    let parts: Vec<&str> = inner.split(',').map(str::trim).collect();
+    let (o, line) = need("origin")?;
+    let YamlData::Sequence(parts) = &o.data else {
+        return Err(field(path, "origin", format!("expected [x, y, yaw], found {} (line {line})", scalar_text(o))));
+    };
     if parts.len() != 3 {
-        return Err(field(path, "origin", format!("expected three numbers [x, y, yaw], found {}", parts.len())));
+        return Err(field(
+            path,
+            "origin",
+            format!("expected three numbers [x, y, yaw], found {} (line {line})", parts.len()),
+        ));
     }
     let mut origin = [0.0; 3];
     for (i, p) in parts.iter().enumerate() {
-        origin[i] = number(&format!("origin[{i}]"), p)?;
+        origin[i] = number(&format!("origin[{i}]"), (p, p.span.start.line()))?;
     }
     if origin[2] != 0.0 {
         return Err(field(
             path,
             "origin[2]",
-            format!("yaw {} rad: rotated maps are not supported (map_server itself mostly ignores yaw)", origin[2]),
+            format!(
+                "yaw {} rad: rotated maps are not supported (map_server itself mostly ignores yaw) (line {line})",
+                origin[2]
+            ),
         ));
     }
-    let negate = match need("negate")? {
-        "0" | "false" | "False" => false,
-        "1" | "true" | "True" => true,
-        v => return Err(field(path, "negate", format!("expected 0 or 1, found {v:?}"))),
+    // map_server reads negate as an integer, 0 or not; YAML's booleans too.
+    let (n, line) = need("negate")?;
+    let negate = match &n.data {
+        YamlData::Value(Scalar::Integer(0)) | YamlData::Value(Scalar::Boolean(false)) => false,
+        YamlData::Value(Scalar::Integer(1)) | YamlData::Value(Scalar::Boolean(true)) => true,
+        _ => return Err(field(path, "negate", format!("expected 0 or 1, found {} (line {line})", scalar_text(n)))),
     };
-    let occupied_thresh = number("occupied_thresh", need("occupied_thresh")?)?;
-    let free_thresh = number("free_thresh", need("free_thresh")?)?;
-    for (k, v) in [("occupied_thresh", occupied_thresh), ("free_thresh", free_thresh)] {
+    let occupied = need("occupied_thresh")?;
+    let free = need("free_thresh")?;
+    let occupied_thresh = number("occupied_thresh", occupied)?;
+    let free_thresh = number("free_thresh", free)?;
+    for (k, v, line) in [("occupied_thresh", occupied_thresh, occupied.1), ("free_thresh", free_thresh, free.1)] {
         if !(0.0..=1.0).contains(&v) {
-            return Err(field(path, k, format!("{v} is outside 0..=1")));
+            return Err(field(path, k, format!("{v} is outside 0..=1 (line {line})")));
         }
     }
     if free_thresh >= occupied_thresh {
         return Err(field(
             path,
             "free_thresh",
-            format!("{free_thresh} must be below occupied_thresh ({occupied_thresh})"),
+            format!("{free_thresh} must be below occupied_thresh ({occupied_thresh}) (line {})", free.1),
         ));
     }
     let mode = match get("mode") {
-        None | Some("trinary") => Mode::Trinary,
-        Some("scale") => Mode::Scale,
-        Some("raw") => Mode::Raw,
-        Some(v) => return Err(field(path, "mode", format!("expected trinary, scale or raw, found {v:?}"))),
+        None => Mode::Trinary,
+        Some((m, line)) => match &m.data {
+            YamlData::Value(Scalar::String(s)) if s == "trinary" => Mode::Trinary,
+            YamlData::Value(Scalar::String(s)) if s == "scale" => Mode::Scale,
+            YamlData::Value(Scalar::String(s)) if s == "raw" => Mode::Raw,
+            _ => {
+                return Err(field(
+                    path,
+                    "mode",
+                    format!("expected trinary, scale or raw, found {} (line {line})", scalar_text(m)),
+                ))
+            }
+        },
     };
     Ok(MapYaml { image, resolution, origin, negate, occupied_thresh, free_thresh, mode })
-}
-
-fn strip_comment(line: &str) -> &str {
-    let mut quote = None;
-    for (i, ch) in line.char_indices() {
-        match (quote, ch) {
-            (None, '"' | '\'') => quote = Some(ch),
-            (Some(q), c) if c == q => quote = None,
-            (None, '#') if i == 0 || line[..i].ends_with(char::is_whitespace) => return &line[..i],
-            _ => {}
-        }
-    }
-    line
-}
-
-fn unquote(v: &str) -> &str {
-    for q in ['"', '\''] {
-        if let Some(s) = v.strip_prefix(q).and_then(|s| s.strip_suffix(q)) {
-            return s;
-        }
-    }
-    v
 }
 
 #[derive(Debug)]
@@ -426,12 +478,41 @@ mod tests {
             (OK.replace("0.65", "1.5"), "occupied_thresh: 1.5 is outside"),
             (OK.replace("0.196", "0.7"), "free_thresh: 0.7 must be below"),
             (format!("{OK}mode: fuzzy\n"), "mode: expected trinary"),
-            (format!("{OK}image: b.pgm\n"), "image: given twice"),
+            (format!("{OK}image: b.pgm\n"), "line 7: not YAML: duplicated key in mapping"),
         ];
         for (text, want) in cases {
             let e = yaml(&text).unwrap_err().to_string();
             assert!(e.contains("/m/x.yaml") && e.contains(want), "{want}: {e}");
         }
+    }
+
+    /// YAML that the old line splitter broke, as map_server (yaml-cpp) reads it.
+    #[test]
+    fn any_yaml_spelling_of_the_keys() {
+        // A flow list over two lines, a quoted image name with spaces,
+        // negate as YAML's boolean, mode scale, keys in another order.
+        let y = yaml(
+            "# my robot's map\nmode: scale\norigin: [-1.5,\n         2.25, 0.0]\nimage: \"my map.pgm\"\n\
+             resolution: 0.05\nnegate: true\noccupied_thresh: 0.65\nfree_thresh: 0.196\n",
+        )
+        .unwrap();
+        assert_eq!(y.image, Path::new("/m/my map.pgm"));
+        assert_eq!(y.origin, [-1.5, 2.25, 0.0]);
+        assert_eq!((y.mode, y.negate), (Mode::Scale, true));
+        // A block list, single quotes, negate 1, a document marker, integers for doubles.
+        let y = yaml("---\nimage: 'a b.png'\nresolution: 1\norigin:\n  - 3\n  - -4\n  - 0\nnegate: 1\noccupied_thresh: 1\nfree_thresh: 0\n").unwrap();
+        assert_eq!(y.image, Path::new("/m/a b.png"));
+        assert_eq!((y.resolution, y.origin, y.negate), (1.0, [3.0, -4.0, 0.0], true));
+        // Errors name the key and its line.
+        let e = yaml(&OK.replace("0.05", "fast")).unwrap_err().to_string();
+        assert!(e.ends_with("resolution: expected a number, found \"fast\" (line 2)"), "{e}");
+        let e = yaml(&OK.replace("[-1.5, 2, 0.0]", "[-1.5,\n  two, 0.0]")).unwrap_err().to_string();
+        assert!(e.ends_with("origin[1]: expected a number, found \"two\" (line 4)"), "{e}");
+        let e = yaml("image: a.pgm\norigin: [0, 0\n").unwrap_err().to_string();
+        assert!(e.contains("/m/x.yaml: line ") && e.contains("not YAML"), "{e}");
+        let e = yaml("- image\n").unwrap_err().to_string();
+        assert!(e.ends_with("line 1: expected `key: value` lines (map_server's keys), found a list"), "{e}");
+        assert!(yaml("").unwrap_err().to_string().contains("image: missing"));
     }
 
     #[test]

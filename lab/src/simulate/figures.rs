@@ -1,122 +1,160 @@
-//! The simulator's two figures: the map with the true, dead-reckoned,
-//! threshold and EKF paths (and the clutter), and the position and heading
-//! errors over time.
+//! The simulator's two figures, drawn with `plotters` ([`crate::figure`]):
+//! the map with the true, dead-reckoned, threshold and EKF paths (and the
+//! clutter), and the position and heading errors over time. Legends sit in
+//! their own panels, clear of the data.
 
 use echoloc::map::StandardMap;
+use plotters::prelude::*;
 
 use super::filters::{Methods, Trace};
-use crate::credence::plot::{legend, Canvas, Rgb};
-use crate::map::render::preview_canvas;
+use crate::figure::{encode, err, legend, nice, rgb, Figure, Format, Root, FONT};
+use crate::map::render::MapLayers;
 use crate::map::Unknown;
 
-const TRUTH: Rgb = [0, 0, 0];
-const DEAD_RECKONING: Rgb = [220, 30, 30];
-const THRESHOLD: Rgb = [150, 60, 200];
-const EKF: Rgb = [0, 150, 60];
-const CLUTTER: Rgb = [230, 0, 160];
-const BLACK: Rgb = [0, 0, 0];
-const GREY: Rgb = [210, 210, 210];
+const TRUTH: [u8; 3] = [0, 0, 0];
+const DEAD_RECKONING: [u8; 3] = [220, 30, 30];
+const THRESHOLD: [u8; 3] = [150, 60, 200];
+const EKF: [u8; 3] = [0, 150, 60];
+const CLUTTER: [u8; 3] = [230, 0, 160];
 
-const SERIES: [(&str, Rgb, Option<Methods>); 4] = [
-    ("TRUTH", TRUTH, None),
-    ("DEAD RECKONING", DEAD_RECKONING, Some(Methods::DeadReckoning)),
-    ("THRESHOLD", THRESHOLD, Some(Methods::Threshold)),
+const SERIES: [(&str, [u8; 3], Option<Methods>); 4] = [
+    ("truth", TRUTH, None),
+    ("dead reckoning", DEAD_RECKONING, Some(Methods::DeadReckoning)),
+    ("threshold method", THRESHOLD, Some(Methods::Threshold)),
     ("EKF", EKF, Some(Methods::Ekf)),
 ];
+
+const LEGEND_W: u32 = 230;
 
 /// (time s, position error m, heading error °).
 type ErrorAt = (f64, f64, f64);
 
-fn mm(p: [f64; 3]) -> (f64, f64) {
-    (p[0] * 1000.0, p[1] * 1000.0)
-}
-
 /// The two PNGs: paths on the map (with the outlines of `unmapped`
 /// objects, m), errors over time (against the true pose, where known).
 pub fn draw(map: &StandardMap, unmapped: &[Vec<(f64, f64)>], t: &Trace) -> (Vec<u8>, Vec<u8>) {
-    (paths(map, unmapped, t), errors(t))
+    draw_as(map, unmapped, t, Format::Png).unwrap_or_default()
 }
 
-fn paths(map: &StandardMap, unmapped: &[Vec<(f64, f64)>], t: &Trace) -> Vec<u8> {
-    let mut cv = preview_canvas(map, None, Unknown::Free);
-    for outline in unmapped {
-        let n = outline.len();
-        for i in 0..n {
-            let (a, b) = (outline[i], outline[(i + 1) % n]);
-            cv.line((a.0 * 1000.0, a.1 * 1000.0), (b.0 * 1000.0, b.1 * 1000.0), CLUTTER, 2);
-        }
-    }
-    for (_, colour, m) in SERIES {
-        let track: Vec<[f64; 3]> = match m {
-            None => t.truth.iter().flatten().copied().collect(),
-            Some(Methods::DeadReckoning) => t.dead_reckoning.clone(),
-            Some(Methods::Threshold) => t.threshold.clone(),
-            Some(Methods::Ekf) => t.ekf.clone(),
-        };
-        for w in track.windows(2) {
-            cv.line(mm(w[0]), mm(w[1]), colour, if m.is_none() { 3 } else { 2 });
-        }
-    }
-    let mut y = 8;
-    for (label, colour, _) in SERIES.iter().chain([("UNMAPPED OBJECTS", CLUTTER, None)].iter()) {
-        cv.text(10, y, &format!("-- {label}"), 2, *colour);
-        y += 20;
-    }
-    cv.png()
+/// [`draw`] in `format`.
+pub fn draw_as(
+    map: &StandardMap,
+    unmapped: &[Vec<(f64, f64)>],
+    t: &Trace,
+    format: Format,
+) -> Result<(Vec<u8>, Vec<u8>), String> {
+    Ok((paths(map, unmapped, t, format)?, errors(t, format)?))
 }
 
-fn errors(t: &Trace) -> Vec<u8> {
-    let (w, h) = (1200i64, 820i64);
-    let mut c = Canvas::new(w as usize, h as usize);
-    c.text(30, 14, "POSITION AND HEADING ERROR OVER TIME", 3, BLACK);
-    let t_end = t.times.last().copied().unwrap_or(1.0).max(1e-3);
-    let t0 = t.times.first().copied().unwrap_or(0.0);
-    let series: Vec<(Rgb, Vec<ErrorAt>)> =
-        SERIES[1..].iter().map(|&(_, colour, m)| (colour, t.error_series(m.unwrap_or(Methods::Ekf)))).collect();
-    let panels: [(&str, usize, i64); 2] = [("POSITION ERROR (M)", 0, 70), ("HEADING ERROR (DEG)", 1, 430)];
-    let (px, pw, ph) = (110i64, w - 160, 280i64);
-    for (title, k, py) in panels {
-        let top = series
-            .iter()
-            .flat_map(|(_, s)| s.iter().map(move |e| if k == 0 { e.1 } else { e.2.abs() }))
-            .fold(0.0f64, f64::max)
-            .max(1e-3);
-        let top = nice(top);
-        c.text(px, py - 24, title, 2, BLACK);
-        for i in 0..=4 {
-            let y = py + ph - (i as f64 / 4.0 * ph as f64) as i64;
-            c.line((px, y), (px + pw, y), GREY, 1);
-            let s = format!("{:.3}", top * i as f64 / 4.0);
-            c.text(px - 10 - Canvas::text_width(&s, 2), y - 7, &s, 2, BLACK);
-        }
-        for i in 0..=5 {
-            let x = px + (i as f64 / 5.0 * pw as f64) as i64;
-            let s = format!("{:.0}", t0 + (t_end - t0) * i as f64 / 5.0);
-            c.text(x - Canvas::text_width(&s, 2) / 2, py + ph + 8, &s, 2, BLACK);
-        }
-        c.text(px + pw / 2 - 30, py + ph + 30, "TIME (S)", 2, BLACK);
-        for (colour, s) in &series {
-            let mut prev = None;
-            for &(time, p, h) in s {
-                let v = if k == 0 { p } else { h.abs() };
-                let x = px + ((time - t0) / (t_end - t0).max(1e-9) * pw as f64) as i64;
-                let y = py + ph - ((v / top).min(1.0) * ph as f64) as i64;
-                if let Some(q) = prev {
-                    c.line(q, (x, y), *colour, 2);
+fn track(t: &Trace, m: Option<Methods>) -> Vec<(f64, f64)> {
+    let v: Vec<[f64; 3]> = match m {
+        None => t.truth.iter().flatten().copied().collect(),
+        Some(Methods::DeadReckoning) => t.dead_reckoning.clone(),
+        Some(Methods::Threshold) => t.threshold.clone(),
+        Some(Methods::Ekf) => t.ekf.clone(),
+    };
+    v.iter().map(|p| (p[0], p[1])).collect()
+}
+
+struct Paths<'a> {
+    layers: MapLayers<'a, StandardMap>,
+    unmapped: &'a [Vec<(f64, f64)>],
+    trace: &'a Trace,
+    size: (u32, u32),
+}
+
+impl Figure for Paths<'_> {
+    fn size(&self) -> (u32, u32) {
+        self.size
+    }
+
+    fn draw<DB: DrawingBackend>(&self, root: &Root<DB>) -> Result<(), String> {
+        let (plot, side) = root.split_horizontally(self.size.0 - LEGEND_W);
+        let mut chart = self.layers.chart(&plot, "Paths: truth, dead reckoning, threshold method, EKF")?;
+        chart
+            .draw_series(self.unmapped.iter().map(|o| {
+                let mut v = o.clone();
+                if let Some(&first) = v.first() {
+                    v.push(first);
                 }
-                prev = Some((x, y));
+                PathElement::new(v, rgb(CLUTTER).stroke_width(2))
+            }))
+            .map_err(err)?;
+        // One pixel wide: plotters joins wider polylines with mitres, which
+        // spike far out where a jittery track turns back on itself.
+        for (_, colour, m) in SERIES {
+            chart.draw_series(LineSeries::new(track(self.trace, m), rgb(colour).stroke_width(1))).map_err(err)?;
+        }
+        let mut items: Vec<(&str, RGBColor)> = SERIES.iter().map(|&(l, c, _)| (l, rgb(c))).collect();
+        items.push(("unmapped objects", rgb(CLUTTER)));
+        items.extend(self.layers.legend());
+        legend(&side.margin(60, 0, 0, 0), &items, false)
+    }
+}
+
+fn paths(map: &StandardMap, unmapped: &[Vec<(f64, f64)>], t: &Trace, format: Format) -> Result<Vec<u8>, String> {
+    let mut layers = MapLayers::new(map, None, Unknown::Free);
+    // The paths may leave the map's bounds (a diverged filter): show them.
+    for (_, _, m) in SERIES {
+        for (x, y) in track(t, m) {
+            let e = &mut layers.extent;
+            *e = [e[0].min(x - 0.5), e[1].max(x + 0.5), e[2].min(y - 0.5), e[3].max(y + 0.5)];
+        }
+    }
+    let (w, h, _, _) = layers.size(1200, LEGEND_W);
+    encode(&Paths { layers, unmapped, trace: t, size: (w, h) }, format)
+}
+
+struct Errors<'a>(&'a Trace);
+
+impl Figure for Errors<'_> {
+    fn size(&self) -> (u32, u32) {
+        (1200, 860)
+    }
+
+    fn draw<DB: DrawingBackend>(&self, root: &Root<DB>) -> Result<(), String> {
+        let t = self.0;
+        let root = root.titled("Position and heading error over time", (FONT, 24)).map_err(err)?;
+        let (panels, foot) = root.split_vertically(760);
+        let series: Vec<(&str, [u8; 3], Vec<ErrorAt>)> = SERIES[1..]
+            .iter()
+            .map(|&(label, colour, m)| (label, colour, t.error_series(m.unwrap_or(Methods::Ekf))))
+            .collect();
+        let t0 = t.times.first().copied().unwrap_or(0.0);
+        let t1 = t.times.last().copied().unwrap_or(1.0).max(t0 + 1e-3);
+        let areas = panels.split_evenly((2, 1));
+        for (k, area) in areas.iter().enumerate() {
+            let value = |e: &(f64, f64, f64)| if k == 0 { e.1 } else { e.2.abs() };
+            let top = nice(series.iter().flat_map(|(_, _, s)| s.iter().map(value)).fold(0.0f64, f64::max).max(1e-3));
+            let mut chart = ChartBuilder::on(area)
+                .margin(14)
+                .x_label_area_size(44)
+                .y_label_area_size(76)
+                .build_cartesian_2d(t0..t1, 0.0..top)
+                .map_err(err)?;
+            chart
+                .configure_mesh()
+                .light_line_style(WHITE)
+                .bold_line_style(RGBColor(225, 225, 225))
+                .x_desc("time (s)")
+                .y_desc(if k == 0 { "position error (m)" } else { "heading error (°)" })
+                .label_style((FONT, 15))
+                .axis_desc_style((FONT, 16))
+                .draw()
+                .map_err(err)?;
+            for (_, colour, s) in &series {
+                chart
+                    .draw_series(LineSeries::new(
+                        s.iter().map(|e| (e.0, value(e).min(top))),
+                        rgb(*colour).stroke_width(1),
+                    ))
+                    .map_err(err)?;
             }
         }
-        c.line((px, py), (px, py + ph), BLACK, 1);
-        c.line((px, py + ph), (px + pw, py + ph), BLACK, 1);
+        let items: Vec<(&str, RGBColor)> = series.iter().map(|(l, c, _)| (*l, rgb(*c))).collect();
+        legend(&foot.margin(10, 0, 90, 0), &items, true)
     }
-    let items: Vec<(&str, Rgb)> = SERIES[1..].iter().map(|&(label, colour, _)| (label, colour)).collect();
-    legend(&mut c, px, h - 40, &items);
-    c.png(std::path::Path::new("error plot")).unwrap_or_default()
 }
 
-/// The next of 1, 2, 5 × 10ⁿ at or above `v`.
-fn nice(v: f64) -> f64 {
-    let e = 10f64.powf(v.log10().floor());
-    [1.0, 2.0, 5.0, 10.0].iter().map(|m| m * e).find(|&x| x >= v).unwrap_or(10.0 * e)
+fn errors(t: &Trace, format: Format) -> Result<Vec<u8>, String> {
+    encode(&Errors(t), format)
 }

@@ -39,6 +39,10 @@ pub struct Judged {
     pub removed: bool,
     /// The obstacle the prediction named.
     pub predicted_obstacle: Option<u16>,
+    /// The EKF's verdict (for recordings, `crate::foxglove`).
+    pub verdict: Option<Verdict>,
+    /// The predicted range, mm.
+    pub predicted_mm: Option<u32>,
 }
 
 /// Error figures of one estimate against the truth, over every reading.
@@ -103,6 +107,10 @@ pub struct Trace {
     pub clouds: Vec<Cloud>,
     /// The localizer's counts.
     pub localizer: localize::LocalizerCounts,
+    /// Per reading: the localizer's mode after it.
+    pub modes: Vec<Mode>,
+    /// Per reading: the estimate's position covariance after it (σ²x, σxy, σ²y; m²).
+    pub position_covariance: Vec<[f32; 3]>,
 }
 
 /// What the localizer reported at the end of a ring cycle.
@@ -182,6 +190,11 @@ impl Trace {
     /// The final estimate of `m`.
     pub fn final_pose(&self, m: Methods) -> Option<[f64; 3]> {
         self.track(m).last().copied()
+    }
+
+    /// Every estimate of `m`, one per reading.
+    pub fn poses(&self, m: Methods) -> &[[f64; 3]] {
+        self.track(m)
     }
 }
 
@@ -446,8 +459,8 @@ fn run_with<const N: usize>(
             lcfg.scan.extra_sigma_mm = v;
         }
     }
-    let mut loc: Box<Localizer<N>> =
-        Box::new(Localizer::new(lcfg, cfg, verdicts, how, field, start.seed).map_err(|e| format!("start: {e}"))?);
+    let mut loc: Box<Localizer<N>> = Box::new(Localizer::new(lcfg, cfg, verdicts, start.seed));
+    loc.start(how, field).map_err(|e| format!("start: {e}"))?;
     if N > 0 {
         loc.check_ring(mounts, field).map_err(|e| format!("--ring: {e}"))?;
     }
@@ -556,6 +569,8 @@ fn run_with<const N: usize>(
             unknown: matches!(rep.verdict, Verdict::UnknownObstacle | Verdict::Unpredicted),
             removed: rep.verdict == Verdict::RemovedOrMissed,
             predicted_obstacle: rep.prediction.map(|p| p.obstacle),
+            verdict: Some(rep.verdict),
+            predicted_mm: rep.prediction.map(|p| p.range_mm),
         });
         let truth = r.truth.map(f64x3);
         if let (Some(p), Some(q)) = (prev_truth, truth) {
@@ -568,6 +583,9 @@ fn run_with<const N: usize>(
         t.dead_reckoning.push(dr);
         t.threshold.push(f64x3(thr.state()));
         t.ekf.push(f64x3(loc.state()));
+        let p = loc.covariance();
+        t.position_covariance.push([p[0][0], p[0][1], p[1][1]]);
+        t.modes.push(loc.mode());
         if i % 256 == 0 {
             progress(i as f64 / steps.len().max(1) as f64);
         }

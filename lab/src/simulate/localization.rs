@@ -33,7 +33,7 @@ fn inside_99(r: &CycleRow) -> Option<bool> {
     let p = r.covariance;
     let (a, b, d) = (f64::from(p[0][0]), f64::from(p[0][1]), f64::from(p[1][1]));
     let det = a * d - b * b;
-    if !(det > 0.0) {
+    if det.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
         return Some(false);
     }
     let m = (d * dx * dx - 2.0 * b * dx * dy + a * dy * dy) / det;
@@ -90,8 +90,10 @@ pub fn report(t: &Trace, kidnaps: &[f64]) -> Value {
         })
         .collect();
     let last = rows.last();
+    let mode_changes = t.modes.windows(2).filter(|w| w[0] != w[1]).count();
     json!({
         "cycles": n,
+        "mode_changes": mode_changes,
         "modes": {"searching": count(Mode::Searching), "tracking": count(Mode::Tracking), "lost": count(Mode::Lost)},
         "first_convergence": first.map(|r| json!({
             "time_s": round4(r.time_s - start_time),

@@ -48,7 +48,8 @@ pub struct SimulateArgs {
     /// One JSON object (the default prints the same, indented).
     #[arg(long)]
     json: bool,
-    /// Writes the map with the paths to OUT.png and the error over time to OUT-error.png.
+    /// Writes the map with the paths to OUT.png and the error over time to
+    /// OUT-error.png (SVG for OUT.svg).
     #[arg(long)]
     plot: Option<PathBuf>,
     /// Writes the run as a binary scenario (docs/scenario.md).
@@ -58,6 +59,9 @@ pub struct SimulateArgs {
     /// the reference: `echoloc-lab replay` on it gives this run's figures.
     #[arg(long)]
     log: Option<PathBuf>,
+    /// Writes the run as a Foxglove recording (MCAP, docs/foxglove.md).
+    #[arg(long)]
+    mcap: Option<PathBuf>,
     /// The EKF without recovery while lost, to measure what it does.
     #[arg(long = "no-recovery")]
     no_recovery: bool,
@@ -122,6 +126,7 @@ pub fn simulate_cmd(a: &SimulateArgs) -> Result<String, LabError> {
         .chain(a.scenario.iter())
         .chain(a.log.iter())
         .chain(a.trace.iter())
+        .chain(a.mcap.iter())
     {
         check_writable(p)?;
     }
@@ -196,9 +201,15 @@ pub fn simulate_cmd(a: &SimulateArgs) -> Result<String, LabError> {
         outputs.push((p.clone(), localization::trace_csv(&trace).into_bytes()));
     }
     if let Some(p) = &a.plot {
-        let (paths, errors) = figures::draw(&map, &run.unmapped, &trace);
+        let (paths, errors) =
+            figures::draw_as(&map, &run.unmapped, &trace, crate::figure::Format::of(p)).map_err(LabError)?;
         outputs.push((p.clone(), paths));
         outputs.push((error_plot_path(p), errors));
+    }
+    if let Some(p) = &a.mcap {
+        let rec = crate::foxglove::record(&map, &mounts, &steps, &trace, &run.unmapped)
+            .map_err(|e| LabError(format!("--mcap: {e}")))?;
+        outputs.push((p.clone(), rec.finish().map_err(|e| LabError(format!("--mcap: {e}")))?));
     }
     write_all(&outputs)?;
     Ok(if a.json { report.to_string() } else { serde_json::to_string_pretty(&report).unwrap_or_default() })
@@ -278,10 +289,11 @@ pub fn write_all(outputs: &[(PathBuf, Vec<u8>)]) -> Result<(), LabError> {
     Ok(())
 }
 
-/// `OUT.png` → `OUT-error.png`.
+/// `OUT.png` → `OUT-error.png` (`OUT.svg` → `OUT-error.svg`).
 pub fn error_plot_path(p: &Path) -> PathBuf {
     let stem = p.file_stem().and_then(|s| s.to_str()).unwrap_or("simulate");
-    p.with_file_name(format!("{stem}-error.png"))
+    let ext = if crate::figure::Format::of(p) == crate::figure::Format::Svg { "svg" } else { "png" };
+    p.with_file_name(format!("{stem}-error.{ext}"))
 }
 
 /// The run as the firmware would see it: odometry increments in `f32` (what
@@ -363,6 +375,7 @@ pub fn report(t: &Trace, run: Option<&SimRun>) -> Value {
             "final_position_error_m": f(|e| e.final_position_m),
             "final_heading_error_deg": f(|e| e.final_heading_deg),
             "final_pose": t.final_pose(m).map(|p| p.map(round6)),
+            "first_pose": t.poses(m).first().map(|p| p.map(round6)),
         })
     };
     let v = &t.verdicts;

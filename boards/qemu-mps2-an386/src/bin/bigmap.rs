@@ -37,17 +37,18 @@ use core::hint::black_box;
 use cortex_m_rt::entry;
 use cortex_m_semihosting::hprintln;
 use echoloc::credence::net::CredenceNet;
-use echoloc::map::{MapSource, MapView, BLOB_HEADER_LEN, BLOB_MAGIC};
+use echoloc::map::{MapSource, MapView, BLOB_HEADER_LEN};
 use echoloc::predict::PredictParams;
 use echoloc::window::WindowParams;
+use qemu_mps2_an386::partition::{self, MapPartition};
 use qemu_mps2_an386::{
     calibrate, elapsed, exit, flash_bytes, free_poses, metric, start_systick, ticks, time_rings, RingTimes,
 };
 
-/// Where the map partition starts: 4-byte aligned, past the 1 MiB image.
-const PARTITION_START: usize = 0x0020_0000;
+/// Where the map partition starts ([`partition::MAP_PARTITION`]).
+const PARTITION_START: usize = partition::MAP_PARTITION;
 /// The partition's size: a map claiming more is refused before it is read.
-const PARTITION_LEN: usize = 2 * 1024 * 1024;
+const PARTITION_LEN: usize = partition::MAP_PARTITION_LEN;
 /// Rings timed, at free poses spread through the map.
 const POSES: usize = 32;
 /// Candidate positions the pose generator may try before giving up.
@@ -119,34 +120,24 @@ fn main() -> ! {
     exit(ok);
 }
 
-/// The map in the partition: its header read through a pointer, its length
-/// bounded by the partition, then the whole blob as a `'static` slice (not
-/// yet validated). `None`, with a FAIL line, when there is no map header or
-/// the header claims more than the partition holds.
+/// The map in the partition ([`partition::read_map`]); `None`, with a FAIL
+/// line, when there is no map header or the header claims more than the
+/// partition holds.
 fn partition_map() -> Option<&'static [u8]> {
-    // SAFETY: PARTITION_START..+PARTITION_LEN lies in SSRAM1 (4 MiB at 0 on
-    // mps2-an386), always mapped and readable, 4-byte aligned, and outside
-    // every region the linker places anything in (FLASH is 0..1 MiB, RAM at
-    // 0x2000_0000); nothing in this program writes it. Reading 16 bytes from
-    // its start is therefore a read of plain, initialised memory.
-    let header: [u8; BLOB_HEADER_LEN] =
-        unsafe { core::ptr::read_volatile(PARTITION_START as *const [u8; BLOB_HEADER_LEN]) };
-    if header[..4] != BLOB_MAGIC[..] {
-        hprintln!("FAIL: no map at {:#010x} (header starts {:02x?})", PARTITION_START, &header[..4]);
-        return None;
+    match partition::read_map(PARTITION_LEN) {
+        MapPartition::Map(b) => Some(b),
+        MapPartition::Empty(h) => {
+            hprintln!("FAIL: no map at {:#010x} (header starts {:02x?})", PARTITION_START, h);
+            None
+        }
+        MapPartition::TooLong(payload_len) => {
+            hprintln!(
+                "FAIL: the map header claims {} + {} bytes, more than the {} byte partition holds: refused",
+                BLOB_HEADER_LEN,
+                payload_len,
+                PARTITION_LEN
+            );
+            None
+        }
     }
-    let payload_len = u32::from_le_bytes([header[8], header[9], header[10], header[11]]) as usize;
-    let Some(len) = payload_len.checked_add(BLOB_HEADER_LEN).filter(|&n| n <= PARTITION_LEN) else {
-        hprintln!(
-            "FAIL: the map header claims {} + {} bytes, more than the {} byte partition holds: refused",
-            BLOB_HEADER_LEN,
-            payload_len,
-            PARTITION_LEN
-        );
-        return None;
-    };
-    // SAFETY: `len` ≤ PARTITION_LEN, so the slice stays inside the partition
-    // described above: mapped, aligned, initialised, and never written while
-    // the program runs, hence valid as an immutable `'static` slice.
-    Some(unsafe { core::slice::from_raw_parts(PARTITION_START as *const u8, len) })
 }

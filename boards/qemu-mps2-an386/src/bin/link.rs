@@ -19,7 +19,7 @@ use core::cell::RefCell;
 
 use cortex_m_rt::entry;
 use cortex_m_semihosting::hprintln;
-use echoloc::controller::replay::{check, localizer, run, ReplayError};
+use echoloc::controller::replay::{check, localizer, run, start, ReplayError};
 use echoloc::controller::{OdometryError, OdometrySample, OdometrySync};
 use echoloc::credence::net::CredenceNet;
 use echoloc::link::{CycleReport, FromController, Link, ReadingReport, ToController, PROTOCOL_VERSION};
@@ -78,13 +78,11 @@ fn main() -> ! {
     let odometry = RefCell::new(OdometrySync::<16>::new());
     let refused = core::cell::Cell::new(0u32);
     let net = CredenceNet::shipped();
-    let loc = match localizer::<PARTICLES, TRANSDUCERS>(&bench, &setup, map.field(), None, 1) {
-        Ok(l) => l,
-        Err(e) => {
-            hprintln!("FAIL: {}", e);
-            exit(false);
-        }
-    };
+    let mut loc = localizer::<PARTICLES, TRANSDUCERS>(&setup, 1);
+    if let Err(e) = start(&mut loc, &bench, map.field(), None) {
+        hprintln!("FAIL: {}", e);
+        exit(false);
+    }
     let result = run::<_, _, 4, TRANSDUCERS, PARTICLES>(
         &bench,
         &map,
@@ -92,7 +90,7 @@ fn main() -> ! {
         &mounts,
         &net,
         &setup,
-        loc,
+        &mut loc,
         |reading, _| {
             // Odometry up to the firing: read the link until a sample at or
             // after it has come (never more: the rest waits in QEMU's socket).

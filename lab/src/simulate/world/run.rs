@@ -136,5 +136,5 @@ pub struct SimRun {
     /// The heading corrections they call for ([`OdometryErrors::heading_bias`]).
     pub heading_bias: (f64, f64),
     /// The kidnaps: time s, carried from, set down at (x m, y m, φ rad).
-    pub kidnaps: Vec<(f64, (f64, f64, f64), (f64, f64, f64))>,
+    pub kidnaps: Vec<(f64, super::motion::Pose, super::motion::Pose)>,
 }

@@ -1,0 +1,228 @@
+//! The ROS 2 messages a sonar bag carries, as far as echoloc reads them,
+//! decoded from CDR (the `cdr` message encoding of rosbag2) by the
+//! `cdr-encoding` crate over serde.
+//!
+//! Each type is the message's leading fields in their `.msg` order (CDR has
+//! no field names: order and alignment are the format). A message is read up
+//! to the last field echoloc needs; what follows (an Odometry's covariance
+//! and twist, the `variance` that Range gained in ROS 2 Iron) is left unread,
+//! so every distribution's layout of these types decodes.
+
+use serde::Deserialize;
+
+/// The rosbag2 type names echoloc reads.
+pub mod types {
+    /// `sensor_msgs/msg/Range`: one transducer's reading.
+    pub const RANGE: &str = "sensor_msgs/msg/Range";
+    /// `sensor_msgs/msg/PointCloud`: a RosAria ring, one point per transducer.
+    pub const POINT_CLOUD: &str = "sensor_msgs/msg/PointCloud";
+    /// `nav_msgs/msg/Odometry`: odometry, or a simulator's ground truth.
+    pub const ODOMETRY: &str = "nav_msgs/msg/Odometry";
+    /// `geometry_msgs/msg/PoseWithCovarianceStamped`: e.g. `/amcl_pose`.
+    pub const POSE_COV: &str = "geometry_msgs/msg/PoseWithCovarianceStamped";
+    /// `tf2_msgs/msg/TFMessage`: `/tf` and `/tf_static`.
+    pub const TF: &str = "tf2_msgs/msg/TFMessage";
+}
+
+/// `builtin_interfaces/msg/Time`.
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
+pub struct Time {
+    pub sec: i32,
+    pub nanosec: u32,
+}
+
+impl Time {
+    /// Seconds since the epoch. A nanosecond field of 10⁹ or more is not a
+    /// time (`None`).
+    pub fn seconds(self) -> Option<f64> {
+        (self.nanosec < 1_000_000_000).then(|| f64::from(self.sec) + f64::from(self.nanosec) * 1e-9)
+    }
+
+    /// Nanoseconds since the epoch (exact, for ordering).
+    pub fn nanos(self) -> i64 {
+        i64::from(self.sec) * 1_000_000_000 + i64::from(self.nanosec)
+    }
+}
+
+/// `std_msgs/msg/Header`.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+pub struct Header {
+    pub stamp: Time,
+    pub frame_id: String,
+}
+
+/// `sensor_msgs/msg/Range` (the fields every distribution has).
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+pub struct Range {
+    pub header: Header,
+    pub radiation_type: u8,
+    pub field_of_view: f32,
+    pub min_range: f32,
+    pub max_range: f32,
+    pub range: f32,
+}
+
+/// `geometry_msgs/msg/Point32`.
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
+pub struct Point32 {
+    pub x: f32,
+    pub y: f32,
+    pub z: f32,
+}
+
+/// `sensor_msgs/msg/PointCloud` up to its points (the channels are not read).
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+pub struct PointCloud {
+    pub header: Header,
+    pub points: Vec<Point32>,
+}
+
+/// `geometry_msgs/msg/Point`.
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
+pub struct Point {
+    pub x: f64,
+    pub y: f64,
+    pub z: f64,
+}
+
+/// `geometry_msgs/msg/Quaternion`.
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
+pub struct Quaternion {
+    pub x: f64,
+    pub y: f64,
+    pub z: f64,
+    pub w: f64,
+}
+
+impl Quaternion {
+    /// The rotation about z (yaw), rad, as tf2's `getYaw`: the heading of a
+    /// planar robot. A quaternion of zero length has none (`None`).
+    pub fn yaw(self) -> Option<f64> {
+        let Quaternion { x, y, z, w } = self;
+        let n = x * x + y * y + z * z + w * w;
+        if !(n.is_finite() && n > 1e-12) {
+            return None;
+        }
+        Some((2.0 * (w * z + x * y)).atan2(1.0 - 2.0 * (y * y + z * z)))
+    }
+}
+
+/// `geometry_msgs/msg/Pose`.
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
+pub struct Pose {
+    pub position: Point,
+    pub orientation: Quaternion,
+}
+
+/// `nav_msgs/msg/Odometry` up to its pose (the pose's covariance and the
+/// twist are not read).
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+pub struct Odometry {
+    pub header: Header,
+    pub child_frame_id: String,
+    pub pose: Pose,
+}
+
+/// `geometry_msgs/msg/PoseWithCovarianceStamped` up to its pose.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+pub struct PoseWithCovarianceStamped {
+    pub header: Header,
+    pub pose: Pose,
+}
+
+/// `geometry_msgs/msg/Vector3`.
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
+pub struct Vector3 {
+    pub x: f64,
+    pub y: f64,
+    pub z: f64,
+}
+
+/// `geometry_msgs/msg/Transform`.
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
+pub struct Transform {
+    pub translation: Vector3,
+    pub rotation: Quaternion,
+}
+
+/// `geometry_msgs/msg/TransformStamped`.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+pub struct TransformStamped {
+    pub header: Header,
+    pub child_frame_id: String,
+    pub transform: Transform,
+}
+
+/// `tf2_msgs/msg/TFMessage`.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+pub struct TfMessage {
+    pub transforms: Vec<TransformStamped>,
+}
+
+/// Decodes a rosbag2 `cdr` message: the 4-byte encapsulation header
+/// (`00 01` little-endian or `00 00` big-endian CDR, then two option bytes),
+/// then `T`'s fields with CDR's alignment counted from after the header.
+pub fn decode<'de, T: Deserialize<'de>>(data: &'de [u8]) -> Result<T, String> {
+    let (head, body) = data.split_at_checked(4).ok_or_else(|| format!("{} bytes: too short for CDR", data.len()))?;
+    let decoded = match (head[0], head[1]) {
+        (0, 1) => cdr_encoding::from_bytes::<T, byteorder::LittleEndian>(body),
+        (0, 0) => cdr_encoding::from_bytes::<T, byteorder::BigEndian>(body),
+        (a, b) => {
+            return Err(format!(
+                "encapsulation {a:02x} {b:02x}: not plain CDR (00 01 little-endian or 00 00 big-endian)"
+            ))
+        }
+    };
+    decoded.map(|(v, _)| v).map_err(|e| e.to_string())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A `sensor_msgs/msg/Range` laid out by hand from the CDR rules
+    /// (OMG CDR: primitives aligned to their size from the body's start;
+    /// strings as a u32 length counting the NUL, the bytes and the NUL).
+    #[test]
+    fn range_by_hand() {
+        let mut b = vec![0, 1, 0, 0];
+        b.extend(7i32.to_le_bytes()); // stamp.sec
+        b.extend(500_000_000u32.to_le_bytes()); // stamp.nanosec
+        b.extend(8u32.to_le_bytes()); // frame_id length with the NUL
+        b.extend(b"sonar_3\0");
+        b.push(0); // radiation_type ULTRASOUND, offset 20
+        b.extend([0, 0, 0]); // pad to 24 for the f32s
+        for v in [0.5f32, 0.1, 5.0, 1.25] {
+            b.extend(v.to_le_bytes());
+        }
+        let r: Range = decode(&b).unwrap();
+        assert_eq!(r.header.frame_id, "sonar_3");
+        assert_eq!(r.header.stamp.seconds(), Some(7.5));
+        assert_eq!((r.min_range, r.max_range, r.range), (0.1, 5.0, 1.25));
+        // Big-endian CDR is CDR too.
+        let mut be = vec![0, 0, 0, 0];
+        be.extend(7i32.to_be_bytes());
+        be.extend(0u32.to_be_bytes());
+        be.extend(1u32.to_be_bytes());
+        be.push(0); // the string's NUL, body offset 12
+        be.push(1); // radiation_type INFRARED, offset 13
+        be.extend([0, 0]); // pad to 16 for the f32s
+        for v in [0.5f32, 0.2, 3.0, 2.0] {
+            be.extend(v.to_be_bytes());
+        }
+        let r: Range = decode(&be).unwrap();
+        assert_eq!((r.header.frame_id.as_str(), r.radiation_type, r.range), ("", 1, 2.0));
+        assert!(decode::<Range>(&b[..20]).is_err(), "a truncated message is an error");
+        assert!(decode::<Range>(&[0, 1]).is_err());
+        assert!(decode::<Range>(&[1, 2, 0, 0, 0, 0, 0, 0]).unwrap_err().contains("not plain CDR"));
+    }
+
+    #[test]
+    fn yaw_of_quaternions() {
+        let q = |th: f64| Quaternion { x: 0.0, y: 0.0, z: (th / 2.0).sin(), w: (th / 2.0).cos() };
+        for th in [0.0, 0.3, -2.0, 3.1] {
+            assert!((q(th).yaw().unwrap() - th).abs() < 1e-12);
+        }
+        assert_eq!(Quaternion { x: 0.0, y: 0.0, z: 0.0, w: 0.0 }.yaw(), None);
+    }
+}

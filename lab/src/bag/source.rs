@@ -1,0 +1,293 @@
+//! Opening a bag: a rosbag2 directory (its `metadata.yaml` naming the MCAP
+//! files, in order) or a bare `.mcap` file, and every message of the types
+//! echoloc reads, grouped by topic.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use serde::Deserialize;
+
+use super::msgs::types;
+use super::BagError;
+
+/// One message as stored: its topic's index in [`Messages::topics`], and
+/// its CDR bytes.
+#[derive(Clone, Debug)]
+pub struct Stored {
+    /// rosbag2's receive time, ns.
+    pub log_time: u64,
+    /// The CDR bytes.
+    pub data: Vec<u8>,
+}
+
+/// A topic of the bag.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Topic {
+    /// The topic's name.
+    pub name: String,
+    /// Its type (`sensor_msgs/msg/Range`), from the channel's schema.
+    pub ty: String,
+    /// Messages on it.
+    pub count: usize,
+}
+
+/// Every topic of the bag, and the messages of the topics whose type echoloc reads.
+#[derive(Debug, Default)]
+pub struct Messages {
+    /// All topics, by name.
+    pub topics: BTreeMap<String, Topic>,
+    /// The messages of the topics echoloc can read, by topic, in file order.
+    pub by_topic: BTreeMap<String, Vec<Stored>>,
+}
+
+/// `metadata.yaml`, as far as echoloc reads it.
+#[derive(Deserialize)]
+struct Metadata {
+    rosbag2_bagfile_information: Info,
+}
+
+#[derive(Deserialize)]
+struct Info {
+    storage_identifier: String,
+    relative_file_paths: Vec<String>,
+    #[serde(default)]
+    compression_mode: String,
+    #[serde(default)]
+    compression_format: String,
+}
+
+/// The MCAP files of the bag at `path`: a directory's `metadata.yaml`
+/// names them; a file is one.
+pub fn files(path: &Path) -> Result<Vec<PathBuf>, BagError> {
+    if !path.is_dir() {
+        if !path.exists() {
+            return Err(BagError::Io { path: path.into(), problem: "no such file or directory".into() });
+        }
+        return Ok(vec![path.into()]);
+    }
+    let meta = path.join("metadata.yaml");
+    let text = std::fs::read_to_string(&meta).map_err(|e| BagError::Io {
+        path: meta.clone(),
+        problem: format!("{e} (a rosbag2 directory has a metadata.yaml; or give the .mcap file itself)"),
+    })?;
+    let m: Metadata =
+        serde_norway::from_str(&text).map_err(|e| BagError::Metadata { path: meta.clone(), problem: e.to_string() })?;
+    let info = m.rosbag2_bagfile_information;
+    if info.storage_identifier != "mcap" {
+        return Err(BagError::Metadata {
+            path: meta,
+            problem: format!(
+                "storage_identifier {:?}: echoloc reads MCAP, rosbag2's default since Iron \
+                 (convert with `ros2 bag convert` to storage mcap)",
+                info.storage_identifier
+            ),
+        });
+    }
+    if !info.compression_mode.is_empty() && info.compression_mode != "NONE" {
+        return Err(BagError::Metadata {
+            path: meta,
+            problem: format!(
+                "compression_mode {} ({}): rosbag2's own file or message compression is not read \
+                 (MCAP's chunk compression is; re-record with a storage preset, or `ros2 bag convert`)",
+                info.compression_mode, info.compression_format
+            ),
+        });
+    }
+    if info.relative_file_paths.is_empty() {
+        return Err(BagError::Metadata { path: meta, problem: "relative_file_paths is empty".into() });
+    }
+    Ok(info.relative_file_paths.iter().map(|f| path.join(f)).collect())
+}
+
+/// Whether echoloc reads messages of type `ty`.
+fn wanted(ty: &str) -> bool {
+    [types::RANGE, types::POINT_CLOUD, types::ODOMETRY, types::POSE_COV, types::TF].contains(&ty)
+}
+
+/// Reads every message of `files`, checking each chunk's CRC.
+pub fn read(files: &[PathBuf]) -> Result<Messages, BagError> {
+    let mut out = Messages::default();
+    for f in files {
+        let bytes = std::fs::read(f).map_err(|e| BagError::Io { path: f.clone(), problem: e.to_string() })?;
+        read_bytes(&bytes, f, &mut out)?;
+    }
+    Ok(out)
+}
+
+/// Checks the framing of an MCAP file's records before the `mcap` crate
+/// streams it: every top-level record within the file, and every record of
+/// an uncompressed chunk within its chunk. (`mcap` 0.26's linear reader
+/// subtracts an inner record's length from what its chunk has left without
+/// checking: found by the `bag` fuzz target, a record running past its chunk
+/// underflows there, a panic with overflow checks, a misread without.)
+pub fn check_framing(bytes: &[u8]) -> Result<(), String> {
+    const MAGIC: &[u8] = b"\x89MCAP0\r\n";
+    let u64_at = |b: &[u8], at: usize| b.get(at..at + 8).map(|s| u64::from_le_bytes(s.try_into().unwrap_or([0; 8])));
+    let u32_at = |b: &[u8], at: usize| b.get(at..at + 4).map(|s| u32::from_le_bytes(s.try_into().unwrap_or([0; 4])));
+    if bytes.len() < MAGIC.len() || &bytes[..MAGIC.len()] != MAGIC {
+        return Err("not an MCAP file (no magic bytes)".into());
+    }
+    let mut at = MAGIC.len();
+    // Records until the footer (0x02) or the end; the trailing magic after the footer.
+    while at + 9 <= bytes.len() {
+        let op = bytes[at];
+        let len = u64_at(bytes, at + 1).unwrap_or(u64::MAX);
+        let body = at + 9;
+        let end = usize::try_from(len).ok().and_then(|l| body.checked_add(l)).filter(|&e| e <= bytes.len());
+        let Some(end) = end else {
+            return Err(format!(
+                "the {} record at byte {at} claims {len} bytes, past the file's end (a truncated file?)",
+                record_name(op)
+            ));
+        };
+        if op == 0x02 {
+            return Ok(());
+        }
+        if op == 0x06 {
+            let chunk = &bytes[body..end];
+            let clen = u32_at(chunk, 28).map(|v| v as usize);
+            let records_at = clen.and_then(|c| c.checked_add(32));
+            let rlen = records_at.and_then(|r| u64_at(chunk, r)).and_then(|v| usize::try_from(v).ok());
+            let (Some(clen), Some(records_at), Some(rlen)) = (clen, records_at, rlen) else {
+                return Err(format!("chunk at byte {at}: its header runs past its end"));
+            };
+            let start = records_at + 8;
+            if start.checked_add(rlen).is_none_or(|e| e > chunk.len()) {
+                return Err(format!("chunk at byte {at}: its records claim {rlen} bytes, past its end"));
+            }
+            if clen == 0 {
+                let records = &chunk[start..start + rlen];
+                let mut r = 0usize;
+                while r < records.len() {
+                    let inner = u64_at(records, r + 1).and_then(|v| usize::try_from(v).ok());
+                    let next = inner.and_then(|l| (r + 9).checked_add(l)).filter(|&n| n <= records.len());
+                    let Some(next) = next else {
+                        return Err(format!(
+                            "chunk at byte {at}: the record at byte {} runs past the chunk's end",
+                            body + start + r
+                        ));
+                    };
+                    r = next;
+                }
+            }
+        }
+        at = end;
+    }
+    if at < bytes.len() {
+        return Err(format!("the file ends inside the record at byte {at}"));
+    }
+    Ok(())
+}
+
+/// The MCAP record type of `op`.
+fn record_name(op: u8) -> &'static str {
+    match op {
+        0x01 => "header",
+        0x02 => "footer",
+        0x03 => "schema",
+        0x04 => "channel",
+        0x05 => "message",
+        0x06 => "chunk",
+        0x07 => "message index",
+        0x08 => "chunk index",
+        0x09 => "attachment",
+        0x0A => "attachment index",
+        0x0B => "statistics",
+        0x0C => "metadata",
+        0x0D => "metadata index",
+        0x0E => "summary offset",
+        0x0F => "data end",
+        _ => "unknown",
+    }
+}
+
+/// Adds the messages of one MCAP file's bytes to `out`; `path` names it in errors.
+pub fn read_bytes(bytes: &[u8], path: &Path, out: &mut Messages) -> Result<(), BagError> {
+    check_framing(bytes).map_err(|problem| BagError::Unreadable { path: path.into(), problem })?;
+    let unreadable = |e: mcap::McapError| BagError::Unreadable { path: path.into(), problem: e.to_string() };
+    let stream = mcap::MessageStream::new_with_options(bytes, mcap::read::Options::ValidateChunkCrcs.into())
+        .map_err(unreadable)?;
+    for m in stream {
+        let m = m.map_err(unreadable)?;
+        let ch = &m.channel;
+        let ty = ch.schema.as_ref().map_or(String::new(), |s| s.name.clone());
+        let topic = out.topics.entry(ch.topic.clone()).or_insert_with(|| Topic {
+            name: ch.topic.clone(),
+            ty: ty.clone(),
+            count: 0,
+        });
+        if topic.ty != ty {
+            return Err(BagError::Unreadable {
+                path: path.into(),
+                problem: format!("topic {} carries two types, {} and {ty}", ch.topic, topic.ty),
+            });
+        }
+        topic.count += 1;
+        if !wanted(&ty) {
+            continue;
+        }
+        let schema_encoding = ch.schema.as_ref().map_or("", |s| s.encoding.as_str());
+        if ch.message_encoding != "cdr" || !matches!(schema_encoding, "ros2msg" | "ros2idl") {
+            return Err(BagError::Encoding {
+                topic: ch.topic.clone(),
+                problem: format!(
+                    "message encoding {:?}, schema encoding {schema_encoding:?}: a ROS 2 bag's are \"cdr\" \
+                     and \"ros2msg\"",
+                    ch.message_encoding
+                ),
+            });
+        }
+        out.by_topic
+            .entry(ch.topic.clone())
+            .or_default()
+            .push(Stored { log_time: m.log_time, data: m.data.into_owned() });
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// An MCAP written by the `mcap` crate without compression, one message.
+    fn small() -> Vec<u8> {
+        let mut w = mcap::WriteOptions::new().compression(None).create(std::io::Cursor::new(Vec::new())).unwrap();
+        let s = w.add_schema("nav_msgs/msg/Odometry", "ros2msg", b"").unwrap();
+        let c = w.add_channel(s, "/odom", "cdr", &Default::default()).unwrap();
+        let h = mcap::records::MessageHeader { channel_id: c, sequence: 1, log_time: 5, publish_time: 5 };
+        w.write_to_known_channel(&h, &[0, 1, 0, 0, 1, 2, 3, 4]).unwrap();
+        w.finish().unwrap();
+        w.into_inner().into_inner()
+    }
+
+    /// The `bag` fuzz target's find: a record inside an uncompressed chunk
+    /// that runs past the chunk is refused before `mcap` reads it.
+    #[test]
+    fn a_record_running_past_its_chunk_is_refused() {
+        let good = small();
+        let mut m = Messages::default();
+        read_bytes(&good, Path::new("good.mcap"), &mut m).unwrap();
+        assert_eq!(m.topics["/odom"].count, 1);
+        // Find the chunk (opcode 0x06) and lengthen its first record by 64 bytes.
+        let mut at = 8;
+        let mut bad = good.clone();
+        loop {
+            let len = u64::from_le_bytes(good[at + 1..at + 9].try_into().unwrap()) as usize;
+            if good[at] == 0x06 {
+                let clen = u32::from_le_bytes(good[at + 9 + 28..at + 9 + 32].try_into().unwrap()) as usize;
+                let first = at + 9 + 32 + clen + 8;
+                let inner = u64::from_le_bytes(good[first + 1..first + 9].try_into().unwrap());
+                bad[first + 1..first + 9].copy_from_slice(&(inner + 64).to_le_bytes());
+                break;
+            }
+            at += 9 + len;
+        }
+        let e = read_bytes(&bad, Path::new("bad.mcap"), &mut Messages::default()).unwrap_err().to_string();
+        assert!(
+            e.starts_with("bad.mcap: unreadable MCAP: chunk at byte") && e.contains("runs past the chunk's end"),
+            "{e}"
+        );
+        assert!(check_framing(b"not mcap").unwrap_err().contains("no magic"));
+        assert!(check_framing(&good[..good.len() - 30]).is_err(), "a file cut in its summary");
+    }
+}

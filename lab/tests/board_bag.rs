@@ -1,0 +1,120 @@
+//! A robot's own map on the board (#28 item 4): a bag recorded on
+//! `bookstore` (written by the independent `scripts/fixture-bag.py` from a
+//! simulated bookstore run) runs on the emulated board through one command,
+//! `echoloc-lab board`, with the map in the board's flash partition; the
+//! board's final pose equals the host replay's within 1 mm and 1 mrad.
+//! Without the map partition the same scenario is refused by the board,
+//! which then holds only the depot.
+//!
+//! Needs `qemu-system-arm` and PyPI's `rosbags` (scripts/setup.sh installs
+//! both) and builds the `replay` firmware.
+
+mod common;
+
+use std::path::Path;
+use std::process::Command;
+
+use common::{board_binary, lab, root, shared_map, tmp};
+use serde_json::Value;
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+fn run_json(args: &[&str]) -> Value {
+    let o = lab().args(args).output().unwrap();
+    assert!(o.status.success(), "{args:?} failed: {}", String::from_utf8_lossy(&o.stderr));
+    serde_json::from_slice(&o.stdout).unwrap()
+}
+
+#[test]
+fn a_bag_recorded_on_bookstore_runs_on_the_board_as_on_the_host() {
+    let elf = board_binary("replay");
+    let map = shared_map("bookstore.yaml");
+    let log = tmp("board", "bookstore.csv");
+    run_json(&["simulate", "--json", "--map", s(&map), "--seed", "1", "--distance-m", "30", "--log", s(&log)]);
+    let bag = tmp("board", "bookstore-bag");
+    let o = Command::new("python3")
+        .arg(root().join("scripts/fixture-bag.py"))
+        .arg(&log)
+        .arg(&bag)
+        .args(["--form", "range"])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "fixture-bag.py: {}", String::from_utf8_lossy(&o.stderr));
+
+    let v = run_json(&["board", "--json", "--map", s(&map), "--bag", s(&bag), "--firmware", s(&elf)]);
+    assert_eq!(v["board"]["exit_code"], 0, "{v}");
+    assert!(v["board"]["map"].as_str().unwrap().contains("from the partition at 0x00200000"), "{v}");
+    assert_eq!(v["board"]["readings"], v["host"]["readings"]);
+    // The host's side is replay --bag's own figure.
+    let host = run_json(&["replay", "--json", "--map", s(&map), "--bag", s(&bag)]);
+    assert_eq!(v["host"]["final_pose"], host["ekf"]["final_pose"]);
+    let (b, h) = (&v["board"]["final_pose"], &host["ekf"]["final_pose"]);
+    let f = |x: &Value, i: usize| x[i].as_f64().unwrap();
+    let d_mm = (f(b, 0) - f(h, 0)).hypot(f(b, 1) - f(h, 1)) * 1000.0;
+    let d_mrad = (f(b, 2) - f(h, 2)).abs() * 1000.0;
+    assert!(d_mm <= 1.0 && d_mrad <= 1.0, "board {b} against host {h}: {d_mm} mm, {d_mrad} mrad");
+    // And it is the bookstore's run: the EKF tracked it.
+    assert!(v["board"]["position_rmse_m"].as_f64().unwrap() < 0.1, "{v}");
+
+    // Without the map in the partition the board has only the depot, and refuses.
+    let csv = tmp("board", "from-bag.csv");
+    let ring = tmp("board", "from-bag-ring.json");
+    run_json(&["log", "--from-bag", s(&bag), "-o", s(&csv), "--ring-out", s(&ring)]);
+    let scn = tmp("board", "bookstore.scn");
+    run_json(&["scenario", "--from-log", s(&csv), "--map", s(&map), "--ring", s(&ring), "-o", s(&scn)]);
+    let o = Command::new("timeout")
+        .args([
+            "120",
+            "qemu-system-arm",
+            "-cpu",
+            "cortex-m4",
+            "-machine",
+            "mps2-an386",
+            "-nographic",
+            "-monitor",
+            "none",
+        ])
+        .args(["-serial", "none", "-icount", "shift=0", "-semihosting-config", "enable=on,target=native"])
+        .arg("-device")
+        .arg(format!("loader,file={},addr=0x00300000", scn.display()))
+        .arg("-kernel")
+        .arg(&elf)
+        .output()
+        .unwrap();
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert_eq!(o.status.code(), Some(1), "{out}");
+    assert!(out.contains("map: the depot, linked into the image"), "{out}");
+    assert!(out.contains("FAIL: scenario refused: scenario: made on the map with CRC"), "{out}");
+}
+
+#[test]
+fn a_ring_the_board_does_not_drive_is_refused() {
+    let dir = tmp("board", "ring8");
+    std::fs::create_dir_all(&dir).unwrap();
+    let ring = dir.join("ring8.json");
+    let mounts: Vec<[f64; 3]> = (0..8).map(|i| [0.2, 0.0, f64::from(i) * 45.0 - 180.0]).collect();
+    std::fs::write(&ring, serde_json::to_string(&mounts).unwrap()).unwrap();
+    let fw = dir.join("replay.elf");
+    std::fs::write(&fw, b"not run").unwrap();
+    let log = dir.join("ring8.csv");
+    std::fs::write(
+        &log,
+        "time_s,transducer,range_mm,odom_x_m,odom_y_m,odom_theta_rad\n0,0,1000,0,0,0\n0.04,7,,0,0,0\n",
+    )
+    .unwrap();
+    let o = lab()
+        .args(["board", "--map", s(&shared_map("depot.yaml")), "--log", s(&log)])
+        .args(["--ring", s(&ring), "--firmware", s(&fw)])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success(), "{err}");
+    assert!(err.contains("ring8.csv: a ring of 8 transducers; the QEMU board drives 16"), "{err}");
+    let o = lab()
+        .args(["board", "--map", s(&shared_map("depot.yaml")), "--log", "x.csv", "--firmware", "/nonexistent/replay"])
+        .output()
+        .unwrap();
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--firmware /nonexistent/replay: no such file (build it"));
+}
