@@ -89,7 +89,7 @@ fn every_message_kind_round_trips() {
         let got: Vec<_> = frame(&m).into_iter().filter_map(|b| rx.push::<ToController>(b)).collect();
         assert_eq!(got, [Ok(m)]);
     }
-    assert_eq!(rx.counts().ok, 6);
+    assert_eq!(rx.counts().ok, 8);
     assert_eq!(rx.counts().dropped(), 0);
 }
 
@@ -174,8 +174,8 @@ fn an_oversized_frame_is_dropped_and_the_next_one_decoded() {
 
 #[test]
 fn another_version_or_message_type_is_refused() {
-    // A sound frame of protocol version 2.
-    let mut raw = vec![2u8];
+    // A sound frame of protocol version 1 (before the localizer's mode).
+    let mut raw = vec![1u8];
     raw.extend_from_slice(&postcard::to_allocvec(&ToController::End).unwrap());
     raw.extend_from_slice(&crc32fast::hash(&raw).to_le_bytes());
     let mut f = vec![0u8];
@@ -183,7 +183,7 @@ fn another_version_or_message_type_is_refused() {
     f.push(0);
     let mut rx = Decoder::<64>::new();
     let got: Vec<_> = f.iter().filter_map(|&b| rx.push::<ToController>(b)).collect();
-    assert_eq!(got, [Err(FrameError::Version(2))]);
+    assert_eq!(got, [Err(FrameError::Version(1))]);
     // A controller's message read as a host's: version and CRC sound, payload not a message.
     let got: Vec<_> = frame(&reading(2)).into_iter().filter_map(|b| rx.push::<ToController>(b)).collect();
     assert_eq!(got, [Err(FrameError::Decode)]);

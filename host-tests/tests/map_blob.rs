@@ -129,7 +129,7 @@ fn malformed_blob_table() {
         ("empty", |b| b.clear(), BlobError::TooShort { len: 0 }),
         ("header cut", |b| b.truncate(10), BlobError::TooShort { len: 10 }),
         ("bad magic", |b| b[0] = b'X', BlobError::BadMagic),
-        ("version 3", |b| b[4] = 3, BlobError::UnsupportedVersion(3)),
+        ("version 4", |b| b[4] = 4, BlobError::UnsupportedVersion(4)),
         ("flags set", |b| b[6] = 1, BlobError::ReservedFlags(1)),
         ("payload cut", |b| b.truncate(b.len() - 3), BlobError::LengthMismatch { header: 0, actual: 0 }),
         ("extra byte", |b| b.push(0), BlobError::LengthMismatch { header: 0, actual: 0 }),

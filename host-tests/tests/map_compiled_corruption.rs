@@ -144,7 +144,9 @@ fn every_lie_of_a_compiled_map_has_its_own_error() {
         ("empty", Box::new(|b, _| b.clear()), BlobError::TooShort { len: 0 }),
         ("header cut", Box::new(|b, _| b.truncate(10)), BlobError::TooShort { len: 10 }),
         ("bad magic", Box::new(|b, _| b[0] = b'X'), BlobError::BadMagic),
-        ("version 3", Box::new(|b, _| b[4] = 3), BlobError::UnsupportedVersion(3)),
+        ("version 4", Box::new(|b, _| b[4] = 4), BlobError::UnsupportedVersion(4)),
+        // The version before the localization field: refused as outdated.
+        ("version 2", Box::new(|b, _| b[4] = 2), BlobError::Outdated { version: 2, current: 3 }),
         ("flags set", Box::new(|b, _| b[6] = 1), BlobError::ReservedFlags(1)),
     ];
     for (what, edit, expect) in header {

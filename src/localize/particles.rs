@@ -356,6 +356,27 @@ impl<const N: usize> ParticleSet<N> {
         Ok(())
     }
 
+    /// Replaces the set by `poses` (at most `N`) with `weights` (normalised
+    /// here; all non-negative, finite, and not all 0), for a caller with a
+    /// belief of its own (a pose from another localizer, a test).
+    pub fn load(&mut self, poses: &[[f32; 3]], weights: &[f32]) -> Result<(), ParticleError> {
+        let n = poses.len().min(weights.len()).min(N);
+        if n == 0 {
+            return Err(ParticleError::NoCapacity);
+        }
+        let ok = |v: &f32| v.is_finite() && *v >= 0.0;
+        let sum: f32 = weights.iter().take(n).sum();
+        if !poses.iter().take(n).flatten().all(|v| v.is_finite()) || !weights.iter().take(n).all(ok) || sum <= 0.0 {
+            return Err(ParticleError::NotFinite);
+        }
+        self.set_uniform(n);
+        for ((d, w), (p, &v)) in self.pose.iter_mut().zip(self.weight.iter_mut()).zip(poses.iter().zip(weights)).take(n) {
+            *d = *p;
+            *w = v / sum;
+        }
+        Ok(())
+    }
+
     fn set_uniform(&mut self, count: usize) {
         self.n = count.min(N);
         let w = 1.0 / self.n.max(1) as f32;

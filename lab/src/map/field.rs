@@ -124,7 +124,16 @@ pub fn build_field<M: MapSource + Sync + ?Sized>(
             }
         }
     }
-    let Some(b) = bounds else { return Err("an empty map has no free space for a field".into()) };
+    let empty = || FieldData {
+        header: FieldHeader { reach_mm: opts.reach_mm, clearance_mm: opts.clearance_mm, ..FieldParts::NONE.header },
+        row_start: vec![0],
+        runs: Vec::new(),
+        free: Vec::new(),
+        entries: Vec::new(),
+    };
+    // An empty map has no room anywhere that the field could describe: an
+    // empty field (the localizer refuses to search it, with a typed error).
+    let Some(b) = bounds else { return Ok(empty()) };
     let node = i64::from(opts.node_mm);
     // The grid reaches beyond the obstacles' box by the reach and a node, so
     // that transducers of a robot at the box's edge have nodes around them.

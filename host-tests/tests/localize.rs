@@ -1,0 +1,362 @@
+//! Finding itself (issue #27), on the host, against independent oracles:
+//!
+//! - the beam model against its textbook mixture written again in `f64`;
+//! - the particles' weighing against a brute force (every reading of every
+//!   particle through the public field lookup and beam model in `f64`);
+//! - low-variance resampling unbiased (each particle's copies over 10⁴
+//!   resamplings within sampling error of N·w);
+//! - KLD sampling's bound against the χ² quantile it approximates
+//!   (`statrs`' inverse CDF);
+//! - determinism per seed;
+//! - the hand-off both ways on the depot with readings the exact predictor
+//!   makes (particles → EKF from a rough pose; a kidnap → the fit monitor
+//!   wakes the particles around the EKF, widened, with a share everywhere);
+//! - bad input refused with typed errors; an old blob refused as Outdated.
+
+use echoloc::credence::net::CredenceNet;
+use echoloc::localize::{
+    kld_bound, BeamModel, FieldLookup, LocalizeError, Localizer, LocalizerConfig, McConfig, Mode, ParticleSet, Rng,
+    Sensed, Start,
+};
+use echoloc::map::{BlobError, Expected, FieldView, MapSource, MapView};
+use echoloc::predict::{predict_mount, Mount, Pose, PredictParams, PIONEER16};
+use echoloc::referencing::{EkfConfig, Motion, Reading, VerdictConfig};
+use echoloc::window::WindowParams;
+use statrs::distribution::{ChiSquared, ContinuousCDF};
+
+fn root() -> std::path::PathBuf {
+    std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..")
+}
+
+/// The committed depot map (with its field) in 8-byte-aligned storage.
+struct Depot {
+    words: Vec<u64>,
+    len: usize,
+}
+
+impl Depot {
+    fn new() -> Self {
+        let bytes = std::fs::read(root().join("boards/qemu-mps2-an386/depot.map")).unwrap();
+        let mut words = vec![0u64; bytes.len().div_ceil(8)];
+        bytemuck::cast_slice_mut::<u64, u8>(&mut words)[..bytes.len()].copy_from_slice(&bytes);
+        Self { words, len: bytes.len() }
+    }
+    fn bytes(&self) -> &[u8] {
+        &bytemuck::cast_slice::<u64, u8>(&self.words)[..self.len]
+    }
+    fn view(&self) -> MapView<'_> {
+        MapView::new(self.bytes()).unwrap()
+    }
+}
+
+fn params(map: &MapView<'_>) -> PredictParams {
+    PredictParams::new(WindowParams { tb_mm: map.buffer_mm(), ..WindowParams::POLAROID_6500 })
+}
+
+/// The beam model's textbook mixture, in f64.
+fn textbook(m: &BeamModel, z_mm: Option<f64>, e: Option<Expected>) -> f64 {
+    let (rmin, rmax) = (f64::from(m.r_min_mm), f64::from(m.r_max_mm));
+    let z = z_mm.filter(|&z| z <= rmax);
+    let Some(e) = e else { return f64::from(m.off_field) };
+    let uniform = 1.0 / ((rmax - rmin) / 1000.0);
+    match (e, z) {
+        (Expected::Nothing, None) => 1.0 - f64::from(m.p_unpredicted),
+        (Expected::Nothing, Some(_)) => f64::from(m.p_unpredicted) * uniform,
+        (Expected::Echo { sure, .. }, None) => f64::from(if sure { m.p_miss_sure } else { m.p_miss_unsure }),
+        (Expected::Echo { range_mm, sure }, Some(z)) => {
+            let r = f64::from(range_mm);
+            let (mix, miss, scale) = if sure {
+                (m.sure_mix, m.p_miss_sure, 1.0)
+            } else {
+                (m.unsure_mix, m.p_miss_unsure, f64::from(m.unsure_sigma_scale))
+            };
+            let sigma = (f64::from(m.sigma_mm) + f64::from(m.sigma_rel) * r) * scale / 1000.0;
+            let d = (z - r) / 1000.0;
+            let hit = (-0.5 * (d / sigma).powi(2)).exp() / (sigma * (2.0 * std::f64::consts::PI).sqrt());
+            let short = if z < r && r > rmin { 1000.0 / (r - rmin) } else { 0.0 };
+            (1.0 - f64::from(miss))
+                * (f64::from(mix[0]) * hit + f64::from(mix[1]) * short + f64::from(mix[2]) * uniform)
+        }
+    }
+}
+
+#[test]
+fn beam_model_is_the_textbook_mixture() {
+    let m = BeamModel::DEFAULT;
+    let mut worst = 0.0f64;
+    for e in [
+        None,
+        Some(Expected::Nothing),
+        Some(Expected::Echo { range_mm: 600.0, sure: true }),
+        Some(Expected::Echo { range_mm: 2345.0, sure: true }),
+        Some(Expected::Echo { range_mm: 2345.0, sure: false }),
+        Some(Expected::Echo { range_mm: 5400.0, sure: false }),
+    ] {
+        for z in (300..6000).step_by(7).map(Some).chain([None]) {
+            let reading = z.map_or(Reading::NoEcho, |z| Reading::Echo { range_mm: z });
+            let got = f64::from(m.likelihood(reading, e));
+            let want = textbook(&m, z.map(f64::from), e);
+            worst = worst.max((got - want).abs() / want.max(1e-12));
+        }
+    }
+    assert!(worst < 2e-5, "worst relative error {worst}");
+    assert_eq!(m.likelihood(Reading::Invalid, Some(Expected::Nothing)), 1.0);
+}
+
+/// Readings of the Pioneer ring at `pose` (m, m, rad), made by the exact
+/// predictor (no clutter): the transducer poses in the robot's frame.
+fn readings(map: &MapView<'_>, pose: [f32; 3]) -> Vec<(Mount, Sensed)> {
+    let net = CredenceNet::shipped();
+    let p = params(map);
+    let at = Pose { x_mm: pose[0] * 1e3, y_mm: pose[1] * 1e3, heading_rad: pose[2] };
+    PIONEER16
+        .iter()
+        .map(|m| {
+            let (pr, _) = predict_mount(map, &at, m, &p, &net).unwrap();
+            let reading = pr.map_or(Reading::NoEcho, |p| Reading::Echo { range_mm: p.range_mm });
+            let local = [m.x_mm as f32 * 1e-3, m.y_mm as f32 * 1e-3, (m.heading_mdeg as f32 * 1e-3).to_radians()];
+            (*m, Sensed { pose: local, reading })
+        })
+        .collect()
+}
+
+#[test]
+fn weighing_equals_a_brute_force() {
+    let depot = Depot::new();
+    let map = depot.view();
+    let lookup = FieldLookup::new(map.field());
+    let truth = [12.3f32, 5.4, 0.7];
+    let sensed: Vec<Sensed> = readings(&map, truth).into_iter().map(|(_, s)| s).collect();
+    let mut rng = Rng::new(9);
+    let mut poses: Vec<[f32; 3]> = (0..200).map(|_| ParticleSet::<0>::free_pose(&mut rng, &lookup).unwrap()).collect();
+    poses.push(truth);
+    let mut set: ParticleSet<256> = ParticleSet::new(1);
+    set.load(&poses, &vec![1.0; poses.len()]).unwrap();
+    // A fixed exponent: no adaptive tempering, no spread.
+    let cfg = McConfig { ess_target: 0.0, temper: 0.5, ..McConfig::DEFAULT };
+    set.set_spread(0.0);
+    set.weigh(&sensed, &lookup, &cfg);
+    // The brute force: poses composed in f64, the log-likelihoods summed in f64.
+    let beam = &cfg.beam;
+    let ll: Vec<f64> = poses
+        .iter()
+        .map(|p| {
+            let (s, c) = (f64::from(p[2]).sin(), f64::from(p[2]).cos());
+            let mut ll = 0.0;
+            if !lookup.is_free(p[0] * 1e3, p[1] * 1e3) {
+                ll += f64::from(beam.off_field).ln();
+            }
+            for r in &sensed {
+                let (x, y) = (f64::from(r.pose[0]), f64::from(r.pose[1]));
+                let tx = f64::from(p[0]) + c * x - s * y;
+                let ty = f64::from(p[1]) + s * x + c * y;
+                let e = lookup.expected((tx * 1e3) as f32, (ty * 1e3) as f32, p[2] + r.pose[2]);
+                ll += f64::from(beam.likelihood(r.reading, e)).ln();
+            }
+            ll
+        })
+        .collect();
+    let best = ll.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
+    let w: Vec<f64> = ll.iter().map(|l| (0.5 * (l - best)).exp()).collect();
+    let sum: f64 = w.iter().sum();
+    let got = set.weights();
+    let tv: f64 = w.iter().zip(got).map(|(a, &b)| (a / sum - f64::from(b)).abs()).sum::<f64>() / 2.0;
+    assert!(tv < 2e-3, "total variation {tv}");
+    // And the truth is the heaviest particle by far.
+    let (i, _) = got.iter().enumerate().max_by(|a, b| a.1.total_cmp(b.1)).unwrap();
+    assert_eq!(i, poses.len() - 1);
+}
+
+#[test]
+fn low_variance_resampling_is_unbiased() {
+    const N: usize = 64;
+    let mut rng = Rng::new(4);
+    let poses: Vec<[f32; 3]> = (0..N).map(|i| [i as f32, 0.0, 0.0]).collect();
+    let weights: Vec<f32> = (0..N).map(|_| rng.uniform().powi(3) + 0.001).collect();
+    let total: f32 = weights.iter().sum();
+    // No injection and no KLD shrinking: the set stays N.
+    let cfg = McConfig { explore: 0.0, max_inject: 0.0, min_particles: N as u16, kld_epsilon: 1e-6, ..McConfig::DEFAULT };
+    let field = FieldView::EMPTY;
+    let lookup = FieldLookup::new(&field);
+    let rounds = 10_000;
+    let mut copies = vec![0u64; N];
+    let mut set: ParticleSet<N> = ParticleSet::new(11);
+    for _ in 0..rounds {
+        set.load(&poses, &weights).unwrap();
+        set.resample(&[], &lookup, &cfg, 1.0, &[]);
+        assert_eq!(set.len(), N);
+        for p in set.poses() {
+            copies[p[0] as usize] += 1;
+        }
+    }
+    for (i, &c) in copies.iter().enumerate() {
+        let expect = N as f64 * f64::from(weights[i] / total);
+        let mean = c as f64 / f64::from(rounds);
+        // A low-variance comb gives ⌊N·w⌋ or ⌈N·w⌉ copies: the mean's
+        // standard error is at most 0.5/√rounds.
+        assert!((mean - expect).abs() < 4.0 * 0.5 / f64::from(rounds).sqrt(), "particle {i}: {mean} against {expect}");
+        // And never further than one copy from N·w in any round.
+    }
+}
+
+#[test]
+fn kld_bound_is_the_chi_square_quantile_over_two_epsilon() {
+    // Fox (2003): n = χ²(k − 1, 1 − δ) / (2ε), which eq. 11 approximates
+    // by Wilson and Hilferty's transformation; statrs computes the quantile.
+    for (eps, delta, z) in [(0.05, 0.01, 2.326_348), (0.01, 0.01, 2.326_348), (0.1, 0.05, 1.644_854)] {
+        for k in [3u32, 5, 10, 30, 100, 500] {
+            let exact = ChiSquared::new(f64::from(k - 1)).unwrap().inverse_cdf(1.0 - delta) / (2.0 * eps);
+            let ours = f64::from(kld_bound(k, eps as f32, z as f32));
+            assert!((ours / exact - 1.0).abs() < 0.02, "k {k}, ε {eps}: {ours} against {exact}");
+        }
+    }
+    assert_eq!(kld_bound(1, 0.05, 2.326), 0.0);
+}
+
+/// A localizer fed `cycles` ring cycles at the poses `truth(c)`, with the
+/// odometry between them; returns it.
+fn drive<const N: usize>(
+    map: &MapView<'_>,
+    loc: &mut Localizer<N>,
+    cycles: usize,
+    truth: impl Fn(usize) -> [f32; 3],
+    odometry: impl Fn(usize) -> Motion,
+    mut each: impl FnMut(usize, &Localizer<N>, echoloc::localize::CycleReport),
+) {
+    let net = CredenceNet::shipped();
+    let p = params(map);
+    for c in 0..cycles {
+        let u = odometry(c);
+        loc.odometry(&u).unwrap();
+        for (m, s) in readings(map, truth(c)) {
+            loc.odometry(&Motion { dx: 0.0, dy: 0.0, dphi: 0.0 }).unwrap();
+            loc.reading(map, &m, &p, &net, s.reading).unwrap();
+        }
+        let rep = loc.end_cycle(map.field()).unwrap();
+        each(c, loc, rep);
+    }
+}
+
+fn new_localizer<const N: usize>(seed: u64) -> Box<Localizer<N>> {
+    Box::new(Localizer::new(LocalizerConfig::DEFAULT, EkfConfig::DEFAULT, VerdictConfig::POLAROID, seed))
+}
+
+/// The robot drives +x along y = 5.4 m in the depot, 0.25 m a cycle.
+fn along(c: usize) -> [f32; 3] {
+    [10.0 + 0.25 * c as f32, 5.4, 0.0]
+}
+
+#[test]
+fn the_same_seed_gives_the_same_run_and_another_does_not() {
+    let depot = Depot::new();
+    let map = depot.view();
+    let run = |seed: u64| {
+        let mut loc = new_localizer::<256>(seed);
+        loc.start(Start::Unknown, map.field()).unwrap();
+        let mut states = Vec::new();
+        drive(&map, &mut loc, 6, along, |c| Motion { dx: if c == 0 { 0.0 } else { 0.25 }, dy: 0.0, dphi: 0.0 }, |_, l, _| {
+            states.push((l.state(), l.particles().poses().to_vec()))
+        });
+        states
+    };
+    let a = run(5);
+    assert_eq!(a, run(5));
+    assert_ne!(a, run(6));
+}
+
+#[test]
+fn particles_hand_off_to_the_ekf_and_a_kidnap_hands_back() {
+    let depot = Depot::new();
+    let map = depot.view();
+    let mut loc = new_localizer::<1024>(3);
+    // Roughly where the robot is: 0.4 m and 8° off, σ 0.5 m and 10°.
+    let rough = [10.3f32, 5.1, 0.14];
+    loc.start(Start::Around { pose: rough, sigma: [0.5, 0.5, 0.17] }, map.field()).unwrap();
+    assert_eq!(loc.mode(), Mode::Searching);
+    let mut handed = None;
+    let step = |c: usize| Motion { dx: if c == 0 { 0.0 } else { 0.25 }, dy: 0.0, dphi: 0.0 };
+    drive(&map, &mut loc, 30, along, step, |c, l, rep| {
+        if rep.handoff && handed.is_none() {
+            handed = Some((c, l.state()));
+        }
+    });
+    let (c, x) = handed.expect("the particles handed off to the EKF");
+    // The state after cycle c's end: where cycle c's readings were taken.
+    let t = along(c);
+    assert!(c < 25, "hand-off only after {c} cycles");
+    assert!((x[0] - t[0]).hypot(x[1] - t[1]) < 0.2 && (x[2] - t[2]).abs() < 0.09, "{x:?} against {t:?}");
+    assert_eq!(loc.mode(), Mode::Tracking);
+    // Carried 3 m sideways, unseen by the odometry: the readings stop
+    // fitting, the particles wake around the EKF's (wrong) pose, widened,
+    // with a share over all free space.
+    let before = loc.state();
+    let mut woke = None;
+    drive(
+        &map,
+        &mut loc,
+        12,
+        |c| [along(30 + c)[0], 8.4, 0.0],
+        |_| Motion { dx: 0.25, dy: 0.0, dphi: 0.0 },
+        |c, l, rep| {
+            if rep.woke && woke.is_none() {
+                assert_eq!(rep.mode, Mode::Lost);
+                woke = Some((c, l.particles().poses().to_vec(), l.state()));
+            }
+        },
+    );
+    let (c, particles, at) = woke.expect("the kidnap woke the particles");
+    assert!(c <= 8, "woken only after {c} cycles");
+    assert!((at[0] - before[0]).abs() < 3.5, "the EKF's estimate moved far: {at:?} from {before:?}");
+    let near = particles.iter().filter(|p| (p[0] - at[0]).hypot(p[1] - at[1]) < 2.0).count();
+    let share = near as f64 / particles.len() as f64;
+    // 70 % drawn around it (σ ≥ 0.5 m: 2 m is 4 σ), 30 % anywhere.
+    assert!((0.6..0.8).contains(&share), "{share}");
+    assert_ne!(loc.mode(), Mode::Tracking);
+}
+
+#[test]
+fn bad_input_is_refused_with_typed_errors() {
+    let depot = Depot::new();
+    let map = depot.view();
+    // No field: no free space to search.
+    let empty = FieldView::EMPTY;
+    let mut loc = new_localizer::<64>(1);
+    assert_eq!(loc.start(Start::Unknown, &empty), Err(LocalizeError::NoFreeSpace));
+    assert_eq!(
+        loc.start(Start::Around { pose: [1.0, 1.0, 0.0], sigma: [0.1; 3] }, &empty),
+        Err(LocalizeError::NoFreeSpace)
+    );
+    // No particles: no search.
+    let mut none = new_localizer::<0>(1);
+    assert_eq!(none.start(Start::Unknown, map.field()), Err(LocalizeError::NoCapacity));
+    // A start region outside the map.
+    assert_eq!(
+        loc.start(Start::Around { pose: [500.0, -40.0, 0.0], sigma: [0.3, 0.3, 0.1] }, map.field()),
+        Err(LocalizeError::OutsideMap)
+    );
+    assert_eq!(
+        loc.start(Start::Around { pose: [f32::NAN, 1.0, 0.0], sigma: [0.3, 0.3, 0.1] }, map.field()),
+        Err(LocalizeError::NotFinite)
+    );
+    // Non-finite odometry, whatever the mode.
+    loc.start(Start::Unknown, map.field()).unwrap();
+    assert_eq!(loc.odometry(&Motion { dx: f32::INFINITY, dy: 0.0, dphi: 0.0 }), Err(LocalizeError::NotFinite));
+    loc.start(Start::Known { pose: [10.0, 5.4, 0.0], sigma: [0.05, 0.05, 0.02] }, map.field()).unwrap();
+    assert_eq!(loc.odometry(&Motion { dx: 0.0, dy: f32::NAN, dphi: 0.0 }), Err(LocalizeError::NotFinite));
+    // A ring beyond the field's reach.
+    let far = [Mount { x_mm: 900, y_mm: 0, heading_mdeg: 0 }];
+    assert_eq!(loc.check_ring(&far, map.field()), Err(LocalizeError::RingBeyondField { transducer: 0 }));
+    assert_eq!(loc.check_ring(&PIONEER16, map.field()), Ok(()));
+}
+
+#[test]
+fn a_blob_of_the_version_before_the_field_is_refused_as_outdated() {
+    let depot = Depot::new();
+    let mut words = depot.words.clone();
+    let bytes = &mut bytemuck::cast_slice_mut::<u64, u8>(&mut words)[..depot.len];
+    bytes[4..6].copy_from_slice(&2u16.to_le_bytes());
+    assert_eq!(MapView::new(bytes).err(), Some(BlobError::Outdated { version: 2, current: 3 }));
+    // Through the host map's loader too.
+    let mut m: Box<echoloc::map::StandardMap> = Box::default();
+    assert_eq!(m.load(bytes), Err(BlobError::Outdated { version: 2, current: 3 }));
+}
