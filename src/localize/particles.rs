@@ -421,7 +421,9 @@ impl<const N: usize> ParticleSet<N> {
     }
 
     /// The sum of the log-likelihoods of `sensed` at particle pose `p`.
-    #[inline]
+    // Out of line: five callers (weighing, injection, the history, the fit
+    // monitor) would each inline a copy (flash: issue #27's budget).
+    #[inline(never)]
     pub(crate) fn log_likelihood(
         p: &[f32; 3],
         sensed: &[Sensed],
