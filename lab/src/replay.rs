@@ -46,6 +46,9 @@ pub struct ReplayArgs {
     /// the reference where the log has one (docs/localization.md).
     #[arg(long)]
     pub trace: Option<PathBuf>,
+    /// Seed of the particles' draws.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
     /// C-space buffer for a .yaml or .geojson map, mm.
     #[arg(long = "buffer-mm", default_value_t = 100)]
     pub buffer_mm: u32,
@@ -167,6 +170,7 @@ pub fn replay_cmd(a: &ReplayArgs) -> Result<String, LabError> {
     let (map, blob) = load_map_and_blob(&a.map, a.buffer_mm)?;
     let steps = steps_of_log(&log);
     let mut how = start(&log, given);
+    how.seed = a.seed;
     crate::simulate::apply_start(&mut how, arg);
     let trace = filters::with_field(&blob, |field| filters::run(&map, field, &mounts, &how, &steps, &mut |_| {}))
         .and_then(|r| r)
