@@ -175,7 +175,8 @@ fn low_variance_resampling_is_unbiased() {
     let weights: Vec<f32> = (0..N).map(|_| rng.uniform().powi(3) + 0.001).collect();
     let total: f32 = weights.iter().sum();
     // No injection and no KLD shrinking: the set stays N.
-    let cfg = McConfig { explore: 0.0, max_inject: 0.0, min_particles: N as u16, kld_epsilon: 1e-6, ..McConfig::DEFAULT };
+    let cfg =
+        McConfig { explore: 0.0, max_inject: 0.0, min_particles: N as u16, kld_epsilon: 1e-6, ..McConfig::DEFAULT };
     let field = FieldView::EMPTY;
     let lookup = FieldLookup::new(&field);
     let rounds = 10_000;
@@ -254,9 +255,14 @@ fn the_same_seed_gives_the_same_run_and_another_does_not() {
         let mut loc = new_localizer::<256>(seed);
         loc.start(Start::Unknown, map.field()).unwrap();
         let mut states = Vec::new();
-        drive(&map, &mut loc, 6, along, |c| Motion { dx: if c == 0 { 0.0 } else { 0.25 }, dy: 0.0, dphi: 0.0 }, |_, l, _| {
-            states.push((l.state(), l.particles().poses().to_vec()))
-        });
+        drive(
+            &map,
+            &mut loc,
+            6,
+            along,
+            |c| Motion { dx: if c == 0 { 0.0 } else { 0.25 }, dy: 0.0, dphi: 0.0 },
+            |_, l, _| states.push((l.state(), l.particles().poses().to_vec())),
+        );
         states
     };
     let a = run(5);

@@ -545,6 +545,8 @@ impl<const N: usize> Localizer<N> {
                             || wrap(c.mean[2] - x[2]).abs() > cfg.calm_angle_rad
                     });
                 let ahead = lead >= cfg.handoff_lead && !far;
+                // A cycle where the cluster keeps half the weight but not the
+                // hand-off's share, or its lead, counts one down.
                 self.converged = match (weight >= cfg.handoff_weight && enough && ahead, same, weight >= 0.5) {
                     (true, true, _) => self.converged.saturating_add(1),
                     (true, false, _) => 1,
@@ -706,14 +708,44 @@ impl<const N: usize> Localizer<N> {
             }
         }
         candidates.truncate(usize::from(c.verify_keep).max(1));
-        let own = cluster.map_or(f32::NEG_INFINITY, |k| self.history.score(&k.mean, &self.sensed, lookup, beam, extra));
+        let score = |p: &[f32; 3]| self.history.score(p, &self.sensed, lookup, beam, extra);
+        // A pose's best score nearby: coordinate ascent in x, y and φ with
+        // halving steps (0.12 m and 3° down to 0.03 m and 0.75°). The scan's
+        // proposals stand on the node grid and its heading bins, the
+        // cluster's mean wherever its particles are: each is refined the
+        // same way before they are compared, or the incumbent would win by
+        // its finer placement alone (in a symmetric map, against its alias).
+        let refine = |start: [f32; 3], s0: f32| {
+            let (mut best, mut s) = (start, s0);
+            for (step_m, step_rad) in [(0.12f32, 0.052f32), (0.06, 0.026), (0.03, 0.013)] {
+                for axis in 0..3 {
+                    let step = if axis == 2 { step_rad } else { step_m };
+                    for sign in [-1.0f32, 1.0] {
+                        let mut p = best;
+                        if let Some(v) = p.get_mut(axis) {
+                            *v += sign * step;
+                        }
+                        let v = score(&p);
+                        if v > s {
+                            (best, s) = (p, v);
+                        }
+                    }
+                }
+            }
+            (best, s)
+        };
+        let own = cluster.map_or(f32::NEG_INFINITY, |k| refine(k.mean, score(&k.mean)).1);
         let elsewhere = |p: &[f32; 3]| {
             cluster.is_none_or(|k| {
                 let (dx, dy) = (p[0] - k.mean[0], p[1] - k.mean[1]);
                 dx * dx + dy * dy > 1.0 || wrap(p[2] - k.mean[2]).abs() > 20.0 * core::f32::consts::PI / 180.0
             })
         };
-        let mut other = candidates.iter().find(|k| elsewhere(&k.pose)).map_or(f32::NEG_INFINITY, |k| k.score);
+        let mut other = f32::NEG_INFINITY;
+        if let Some(k) = candidates.iter_mut().find(|k| elsewhere(&k.pose)) {
+            (k.pose, k.score) = refine(k.pose, k.score);
+            other = k.score;
+        }
         if self.ekf_awake {
             // The EKF beside the particles is a hypothesis too: a cluster
             // elsewhere must lead it as well, by the larger margin (it

@@ -370,7 +370,8 @@ impl<const N: usize> ParticleSet<N> {
             return Err(ParticleError::NotFinite);
         }
         self.set_uniform(n);
-        for ((d, w), (p, &v)) in self.pose.iter_mut().zip(self.weight.iter_mut()).zip(poses.iter().zip(weights)).take(n) {
+        for ((d, w), (p, &v)) in self.pose.iter_mut().zip(self.weight.iter_mut()).zip(poses.iter().zip(weights)).take(n)
+        {
             *d = *p;
             *w = v / sum;
         }

@@ -388,77 +388,7 @@ fn run_with<const N: usize>(
         StartMode::Around => localize::Start::Around { pose: start.pose, sigma: start.sigma },
         StartMode::Unknown => localize::Start::Unknown,
     };
-    let mut lcfg = LocalizerConfig::DEFAULT;
-    {
-        // XP_* hooks: temporary, for tuning (remove before merging).
-        let env = |k: &str| std::env::var(k).ok().and_then(|v| v.parse::<f32>().ok());
-        if let Some(v) = env("XP_TRIES") {
-            lcfg.mcl.inject_tries = v as u8;
-        }
-        if let Some(v) = env("XP_SCAN") {
-            lcfg.mcl.scan_headings = v as u8;
-        }
-        if let Some(v) = env("XP_EXPLORE") {
-            lcfg.mcl.explore = v;
-        }
-        if let Some(v) = env("XP_MAXINJ") {
-            lcfg.mcl.max_inject = v;
-        }
-        if let Some(v) = env("XP_TEMPER") {
-            lcfg.mcl.temper = v;
-        }
-        if let Some(v) = env("XP_ESS") {
-            lcfg.mcl.ess_target = v;
-        }
-        if let Some(v) = env("XP_SIG") {
-            lcfg.mcl.beam.sigma_mm = v;
-        }
-        if let Some(v) = env("XP_REL") {
-            lcfg.mcl.beam.sigma_rel = v;
-        }
-        if let Some(v) = env("XP_HCYC") {
-            lcfg.handoff_cycles = v as u8;
-        }
-        if let Some(v) = env("XP_MINP") {
-            lcfg.mcl.min_particles = v as u16;
-        }
-        if let Some(v) = env("XP_SLOW") {
-            lcfg.mcl.alpha_slow = v;
-        }
-        if let Some(v) = env("XP_FAST") {
-            lcfg.mcl.alpha_fast = v;
-        }
-        if let Some(v) = env("XP_MARGIN") {
-            lcfg.verify_margin = v;
-        }
-        if let Some(v) = env("XP_VSIG") {
-            lcfg.verify_sigma_mm = v;
-        }
-        if let Some(v) = env("XP_VSHARE") {
-            lcfg.verified_share = v;
-        }
-        if let Some(v) = env("XP_VKEEP") {
-            lcfg.verify_keep = v as u8;
-        }
-        if let Some(v) = env("XP_LEAD") {
-            lcfg.handoff_lead = v;
-        }
-        if let Some(v) = env("XP_FITDROP") {
-            lcfg.fit_drop = v;
-        }
-        if let Some(v) = env("XP_FITCYC") {
-            lcfg.fit_cycles = v as u8;
-        }
-        if let Some(v) = env("XP_SCANN") {
-            lcfg.scan.nodes_per_cycle = v as u16;
-        }
-        if let Some(v) = env("XP_KEEP") {
-            lcfg.scan.keep = v as u8;
-        }
-        if let Some(v) = env("XP_SCANSIG") {
-            lcfg.scan.extra_sigma_mm = v;
-        }
-    }
+    let lcfg = LocalizerConfig::DEFAULT;
     let mut loc: Box<Localizer<N>> = Box::new(Localizer::new(lcfg, cfg, verdicts, start.seed));
     loc.start(how, field).map_err(|e| format!("start: {e}"))?;
     if N > 0 {
@@ -481,33 +411,10 @@ fn run_with<const N: usize>(
         });
     }
     let mut last: Option<(f64, Option<[f64; 3]>)> = None;
-    let mut cycle_start_truth: Option<[f64; 3]> = None;
-    let mut close = |loc: &mut Localizer<N>,
-                     t: &mut Trace,
-                     last: Option<(f64, Option<[f64; 3]>)>,
-                     travelled: f64,
-                     t0: Option<[f64; 3]>| {
+    let mut close = |loc: &mut Localizer<N>, t: &mut Trace, last: Option<(f64, Option<[f64; 3]>)>, travelled: f64| {
         let before = loc.particles().poses().to_vec();
-        let near = t0.map_or(0, |t0| {
-            before
-                .iter()
-                .filter(|p| {
-                    (f64::from(p[0]) - t0[0]).hypot(f64::from(p[1]) - t0[1]) < 0.3
-                        && wrap(f64::from(p[2]) - t0[2]).abs() < 0.17
-                })
-                .count()
-        });
         let rep = loc.end_cycle(field).map_err(|e| format!("{e}"))?;
         let (time_s, truth) = last.unwrap_or((0.0, None));
-        if std::env::var("LOC_DEBUG").is_ok() {
-            let st = loc.state();
-            let e = truth.map_or(-1.0, |t| (f64::from(st[0]) - t[0]).hypot(f64::from(st[1]) - t[1]));
-            let (ws, wf) = loc.particles().averages();
-            eprintln!(
-                "fit {:.2} {:.2} {:.2} t {time_s:.1} mode {:?} near {near} n {} alpha {:.3} ess {:.0} best {:.1} k {} cw {:.2} inj {:.2} slow {ws:.4} fast {wf:.4} err {e:.2} handoff {} woke {}",
-                rep.fit[0], rep.fit[1], rep.fit[2], rep.mode, rep.particles, rep.weighed.alpha, rep.weighed.ess, rep.weighed.best_ll, rep.weighed.readings, rep.cluster_weight, rep.injected, rep.handoff, rep.woke
-            );
-        }
         if rep.handoff {
             t.clouds.push(Cloud { time_s, why: "handoff", particles: before });
         } else if rep.woke {
@@ -536,12 +443,8 @@ fn run_with<const N: usize>(
     for (i, r) in steps.iter().enumerate() {
         if r.cycle != cycle {
             let travelled = if all_true { t.distance_m } else { odometry_m };
-            close(&mut loc, &mut t, last, travelled, cycle_start_truth)?;
+            close(&mut loc, &mut t, last, travelled)?;
             cycle = r.cycle;
-            cycle_start_truth = None;
-        }
-        if cycle_start_truth.is_none() {
-            cycle_start_truth = r.truth.map(f64x3);
         }
         let mount = mounts
             .get(usize::from(r.transducer))
@@ -591,7 +494,7 @@ fn run_with<const N: usize>(
         }
     }
     let travelled = if all_true { t.distance_m } else { odometry_m };
-    close(&mut loc, &mut t, last, travelled, cycle_start_truth)?;
+    close(&mut loc, &mut t, last, travelled)?;
     if !all_true {
         t.distance_m = odometry_m;
     }
