@@ -17,26 +17,9 @@ use echoloc::referencing::{Ekf, EkfConfig, Reading, Referencer, Update, VerdictC
 use echoloc::scenario::Scenario;
 use echoloc::window::WindowParams;
 
-fn root() -> std::path::PathBuf {
-    std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..")
-}
-
-struct Depot {
-    words: Vec<u64>,
-    len: usize,
-}
-
-impl Depot {
-    fn load() -> Self {
-        let bytes = std::fs::read(root().join("boards/qemu-mps2-an386/depot.map")).unwrap();
-        let mut words = vec![0u64; bytes.len().div_ceil(8)];
-        bytemuck::cast_slice_mut::<u64, u8>(&mut words)[..bytes.len()].copy_from_slice(&bytes);
-        Self { words, len: bytes.len() }
-    }
-    fn view(&self) -> MapView<'_> {
-        MapView::new(&bytemuck::cast_slice::<u64, u8>(&self.words)[..self.len]).unwrap()
-    }
-}
+#[path = "common/depot.rs"]
+mod depot;
+use depot::{root, Depot};
 
 /// True poses (m, m, rad) of the committed depot scenario: free space with
 /// clearance, as the simulator planned its route.

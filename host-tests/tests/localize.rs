@@ -24,30 +24,9 @@ use echoloc::referencing::{EkfConfig, Motion, Reading, VerdictConfig};
 use echoloc::window::WindowParams;
 use statrs::distribution::{ChiSquared, ContinuousCDF};
 
-fn root() -> std::path::PathBuf {
-    std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..")
-}
-
-/// The committed depot map (with its field) in 8-byte-aligned storage.
-struct Depot {
-    words: Vec<u64>,
-    len: usize,
-}
-
-impl Depot {
-    fn new() -> Self {
-        let bytes = std::fs::read(root().join("boards/qemu-mps2-an386/depot.map")).unwrap();
-        let mut words = vec![0u64; bytes.len().div_ceil(8)];
-        bytemuck::cast_slice_mut::<u64, u8>(&mut words)[..bytes.len()].copy_from_slice(&bytes);
-        Self { words, len: bytes.len() }
-    }
-    fn bytes(&self) -> &[u8] {
-        &bytemuck::cast_slice::<u64, u8>(&self.words)[..self.len]
-    }
-    fn view(&self) -> MapView<'_> {
-        MapView::new(self.bytes()).unwrap()
-    }
-}
+#[path = "common/depot.rs"]
+mod depot;
+use depot::Depot;
 
 fn params(map: &MapView<'_>) -> PredictParams {
     PredictParams::new(WindowParams { tb_mm: map.buffer_mm(), ..WindowParams::POLAROID_6500 })
@@ -122,7 +101,7 @@ fn readings(map: &MapView<'_>, pose: [f32; 3]) -> Vec<(Mount, Sensed)> {
 
 #[test]
 fn weighing_equals_a_brute_force() {
-    let depot = Depot::new();
+    let depot = Depot::load();
     let map = depot.view();
     let lookup = FieldLookup::new(map.field());
     let truth = [12.3f32, 5.4, 0.7];
@@ -249,7 +228,7 @@ fn along(c: usize) -> [f32; 3] {
 
 #[test]
 fn the_same_seed_gives_the_same_run_and_another_does_not() {
-    let depot = Depot::new();
+    let depot = Depot::load();
     let map = depot.view();
     let run = |seed: u64| {
         let mut loc = new_localizer::<256>(seed);
@@ -272,7 +251,7 @@ fn the_same_seed_gives_the_same_run_and_another_does_not() {
 
 #[test]
 fn particles_hand_off_to_the_ekf_and_a_kidnap_hands_back() {
-    let depot = Depot::new();
+    let depot = Depot::load();
     let map = depot.view();
     let mut loc = new_localizer::<1024>(3);
     // Roughly where the robot is: 0.4 m and 8° off, σ 0.5 m and 10°.
@@ -322,7 +301,7 @@ fn particles_hand_off_to_the_ekf_and_a_kidnap_hands_back() {
 
 #[test]
 fn bad_input_is_refused_with_typed_errors() {
-    let depot = Depot::new();
+    let depot = Depot::load();
     let map = depot.view();
     // No field: no free space to search.
     let empty = FieldView::EMPTY;
@@ -357,7 +336,7 @@ fn bad_input_is_refused_with_typed_errors() {
 
 #[test]
 fn a_blob_of_the_version_before_the_field_is_refused_as_outdated() {
-    let depot = Depot::new();
+    let depot = Depot::load();
     let mut words = depot.words.clone();
     let bytes = &mut bytemuck::cast_slice_mut::<u64, u8>(&mut words)[..depot.len];
     bytes[4..6].copy_from_slice(&2u16.to_le_bytes());

@@ -243,26 +243,12 @@ impl Ekf {
         if !in_range(&x) {
             return Err(EkfError::OutOfRange);
         }
-        let mut p = [[0.0; 3]; 3];
+        let mut e = Self::origin(cfg);
         for i in 0..3 {
-            p[i][i] = crate::f32math::clamp(sigma[i] * sigma[i], cfg.min_var[i], cfg.max_var[i]);
+            e.p[i][i] = crate::f32math::clamp(sigma[i] * sigma[i], cfg.min_var[i], cfg.max_var[i]);
         }
-        Ok(Self {
-            x: [x[0], x[1], wrap(x[2])],
-            p,
-            cfg,
-            cycle: CycleUpdates::default(),
-            bad_run: 0,
-            rates: (0.0, 0.0),
-            rated: 0,
-            lost: false,
-            lost_count: 0,
-            cycles_lost: 0,
-            recent: Recent::new(),
-            recoveries: 0,
-            last_recovery: None,
-            calibration: OdometryCalibration::new(),
-        })
+        e.x = [x[0], x[1], wrap(x[2])];
+        Ok(e)
     }
 
     /// Restarts the filter at `x` with covariance `p` (a relocalisation:
