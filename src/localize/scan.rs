@@ -130,6 +130,8 @@ impl Sweep {
         }
         let (lut, geo) = (lut.get(..k).unwrap_or(&[]), geo.get(..k).unwrap_or(&[]));
         let step = stride(nodes);
+        // 20° in heading bins.
+        let apart = (dirs as f32 * 20.0 / 360.0) as usize;
         let mut scored = 0u32;
         let mut visited = 0u32;
         // The best `keep` so far, the worst on top (a min-heap).
@@ -158,6 +160,10 @@ impl Sweep {
                     }
                 }
             }
+            // The node's best heading, and its best one more than 20° from
+            // that (a symmetric room's other way round): a node offers at
+            // most two proposals, so one place cannot fill the list.
+            let mut top = [(i32::MIN, 0usize); 2];
             for b in 0..dirs {
                 let mut score = 0i32;
                 for (l, g) in lut.iter().zip(geo) {
@@ -166,6 +172,17 @@ impl Sweep {
                     // Off the field: as bad as the worst byte, and a little worse.
                     score += byte.map_or(-128, |&v| i32::from(l.get(usize::from(v)).copied().unwrap_or(-128)));
                 }
+                if score > top[0].0 {
+                    let far = bins_apart(top[0].1, b, dirs) > apart;
+                    if far || top[0].0 == i32::MIN {
+                        top[1] = top[0];
+                    }
+                    top[0] = (score, b);
+                } else if score > top[1].0 && bins_apart(top[0].1, b, dirs) > apart {
+                    top[1] = (score, b);
+                }
+            }
+            for &(score, b) in top.iter().filter(|t| t.0 > i32::MIN) {
                 if best.len() < keep {
                     let _ = best.push((score, n, b as u8));
                 } else if best.peek().is_some_and(|w| score > w.0) {
@@ -192,6 +209,12 @@ impl Sweep {
             }
         }
     }
+}
+
+/// Heading bins between `a` and `b` of `dirs`, the shorter way round.
+fn bins_apart(a: usize, b: usize, dirs: usize) -> usize {
+    let d = a.abs_diff(b);
+    d.min(dirs.saturating_sub(d))
 }
 
 #[cfg(test)]
