@@ -244,8 +244,8 @@ impl Ekf {
             return Err(EkfError::OutOfRange);
         }
         let mut e = Self::origin(cfg);
-        for i in 0..3 {
-            e.p[i][i] = crate::f32math::clamp(sigma[i] * sigma[i], cfg.min_var[i], cfg.max_var[i]);
+        for (i, (row, s)) in e.p.iter_mut().zip(sigma).enumerate() {
+            row[i] = crate::f32math::clamp(s * s, cfg.min_var[i], cfg.max_var[i]);
         }
         e.x = [x[0], x[1], wrap(x[2])];
         Ok(e)
