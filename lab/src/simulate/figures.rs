@@ -16,12 +16,21 @@ const DEAD_RECKONING: [u8; 3] = [220, 30, 30];
 const THRESHOLD: [u8; 3] = [150, 60, 200];
 const EKF: [u8; 3] = [0, 150, 60];
 const CLUTTER: [u8; 3] = [230, 0, 160];
+/// The particle clouds at the moments that matter: the start of a search,
+/// just before a hand-off, at a wake-up, and at the times asked for (the
+/// kidnaps).
+const CLOUDS: [(&str, &str, [u8; 3]); 4] = [
+    ("start", "particles at the start", [150, 150, 150]),
+    ("handoff", "particles at a hand-off", [240, 140, 0]),
+    ("wake", "particles at a wake-up", [30, 90, 230]),
+    ("asked", "particles after a kidnap", [0, 180, 200]),
+];
 
 const SERIES: [(&str, [u8; 3], Option<Methods>); 4] = [
     ("truth", TRUTH, None),
     ("dead reckoning", DEAD_RECKONING, Some(Methods::DeadReckoning)),
     ("threshold method", THRESHOLD, Some(Methods::Threshold)),
-    ("EKF", EKF, Some(Methods::Ekf)),
+    ("EKF (localizer)", EKF, Some(Methods::Ekf)),
 ];
 
 const LEGEND_W: u32 = 230;
@@ -79,6 +88,16 @@ impl Figure for Paths<'_> {
                 PathElement::new(v, rgb(CLUTTER).stroke_width(2))
             }))
             .map_err(err)?;
+        // The clouds under the paths: one dot a particle.
+        for (why, _, colour) in CLOUDS {
+            for cloud in self.trace.clouds.iter().filter(|c| c.why == why) {
+                chart
+                    .draw_series(cloud.particles.iter().map(|p| {
+                        Circle::new((f64::from(p[0]), f64::from(p[1])), 1, rgb(colour).filled())
+                    }))
+                    .map_err(err)?;
+            }
+        }
         // One pixel wide: plotters joins wider polylines with mitres, which
         // spike far out where a jittery track turns back on itself.
         for (_, colour, m) in SERIES {
@@ -86,6 +105,11 @@ impl Figure for Paths<'_> {
         }
         let mut items: Vec<(&str, RGBColor)> = SERIES.iter().map(|&(l, c, _)| (l, rgb(c))).collect();
         items.push(("unmapped objects", rgb(CLUTTER)));
+        for (why, label, colour) in CLOUDS {
+            if self.trace.clouds.iter().any(|c| c.why == why) {
+                items.push((label, rgb(colour)));
+            }
+        }
         items.extend(self.layers.legend());
         legend(&side.margin(60, 0, 0, 0), &items, false)
     }
