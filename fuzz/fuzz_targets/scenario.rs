@@ -4,7 +4,7 @@
 //! refused by `check`, and the replay's errors are typed: nothing panics).
 #![no_main]
 
-use echoloc::controller::replay::{check as replay_check, run, scenario_odometry, ReplaySetup};
+use echoloc::controller::replay::{check as replay_check, localizer, run, scenario_odometry, start, ReplaySetup};
 use echoloc::credence::net::CredenceNet;
 use echoloc::map::{Aligned, MapSource, MapView};
 use echoloc::predict::{Mount, PredictParams};
@@ -45,6 +45,21 @@ fn check(data: &[u8]) {
     if replay_check(&bench, s.header().map_crc, &setup).is_err() {
         return;
     }
-    let _ =
-        run::<_, _, 4, 16>(&bench, &map, &mounts, &CredenceNet::shipped(), &setup, scenario_odometry, |_, _, _, _| {});
+    // No particles: the office map is compiled without a field, so the
+    // localizer only tracks from the scenario's start.
+    let mut loc = localizer::<0, 16>(&setup, 1);
+    if start(&mut loc, &bench, map.field(), None).is_err() {
+        return;
+    }
+    let _ = run::<_, _, 4, 16, 0>(
+        &bench,
+        &map,
+        map.field(),
+        &mounts,
+        &CredenceNet::shipped(),
+        &setup,
+        &mut loc,
+        scenario_odometry,
+        |_, _, _, _| {},
+    );
 }
