@@ -92,9 +92,12 @@ impl Figure for Paths<'_> {
         for (why, _, colour) in CLOUDS {
             for cloud in self.trace.clouds.iter().filter(|c| c.why == why) {
                 chart
-                    .draw_series(cloud.particles.iter().map(|p| {
-                        Circle::new((f64::from(p[0]), f64::from(p[1])), 1, rgb(colour).filled())
-                    }))
+                    .draw_series(
+                        cloud
+                            .particles
+                            .iter()
+                            .map(|p| Circle::new((f64::from(p[0]), f64::from(p[1])), 1, rgb(colour).filled())),
+                    )
                     .map_err(err)?;
             }
         }
