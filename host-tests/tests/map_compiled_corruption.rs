@@ -187,7 +187,22 @@ fn every_lie_of_a_compiled_map_has_its_own_error() {
             }),
             BlobError::SizeMismatch,
         ),
-        ("reserved count word", Box::new(|b, _| b[H + 44] = 1), BlobError::ReservedByte { offset: H + 44 }),
+        (
+            "a field one word longer than the payload holds",
+            Box::new(|b, _| {
+                let f = u32_at(b, H + 44);
+                put_u32(b, H + 44, f + 4)
+            }),
+            BlobError::Truncated,
+        ),
+        (
+            "a field one word shorter than the payload holds",
+            Box::new(|b, _| {
+                let f = u32_at(b, H + 44);
+                put_u32(b, H + 44, f - 4)
+            }),
+            BlobError::TrailingBytes,
+        ),
         ("unknown obstacle kind", Box::new(|b, _| b[OBST] = 7), BlobError::UnknownKind { obstacle: 0, code: 7 }),
         ("reserved obstacle byte", Box::new(|b, _| b[OBST + 9] = 1), BlobError::ReservedByte { offset: OBST + 8 }),
         ("an empty obstacle", Box::new(|b, _| put_u16(b, OBST + 8 + 2, 0)), BlobError::EmptyObstacle { obstacle: 1 }),
@@ -324,9 +339,12 @@ fn every_lie_of_a_compiled_map_has_its_own_error() {
                 // the boxes say two refs are missing.
                 put_u32(b, H + 40, l.refs as u32 - 2);
                 put_u32(b, l.start(l.cells), l.refs as u32 - 2);
+                // The field after the refs stays as it was.
+                let field = b.split_off(l.refs_at() + (2 * l.refs).next_multiple_of(4));
                 let end = l.refs_at() + 2 * (l.refs - 2);
                 b.truncate(end);
                 b.resize(end.next_multiple_of(4), 0);
+                b.extend_from_slice(&field);
                 let len = (b.len() - H) as u32;
                 put_u32(b, 8, len);
             }),
@@ -351,7 +369,7 @@ fn every_lie_of_a_compiled_map_has_its_own_error() {
     // The padding after the refs, when there is some.
     if l.refs % 2 == 1 {
         let mut b = good.clone();
-        let last = b.len() - 1;
+        let last = l.refs_at() + (2 * l.refs).next_multiple_of(4) - 1;
         b[last] = 1;
         fix_crc(&mut b);
         assert_eq!(validate(&b), Err(BlobError::ReservedByte { offset: last }));

@@ -2,7 +2,7 @@
 //! host in its final form and read in place (from flash) through a
 //! [`MapView`]. RAM used by a view is a few slices, whatever the map's size.
 //!
-//! Version 2 of the blob (`docs/map-blob.md`). Little-endian, every section
+//! Version 3 of the blob (`docs/map-blob.md`). Little-endian, every section
 //! 4-aligned from a 4-aligned start:
 //!
 //! ```text
@@ -10,7 +10,7 @@
 //!                    payload_len u32, crc32 u32 (CRC-32 of the payload)
 //! counts (48 bytes)  buffer_mm, cell_mm, obstacles, pieces, true_vertices,
 //!                    vertices, grid origin x i32, origin y i32, cols, rows,
-//!                    refs, reserved = 0                      (u32 unless said)
+//!                    refs, field_len (the field's bytes)     (u32 unless said)
 //! obstacles × 8      kind u8, 0 u8, piece_count u16, first_piece u16, 0 u16
 //! pieces × 32        obstacle u16, true_len u8, buf_len u8, true_start u32,
 //!                    buf_start u32, seams u32, buffered box [i32; 4]
@@ -76,7 +76,9 @@ struct Counts {
     cols: u32,
     rows: u32,
     refs: u32,
-    reserved: u32,
+    /// The field's bytes: with it the payload's size is fixed by the counts,
+    /// so a lying count is a size error, not a misread field.
+    field_len: u32,
 }
 
 #[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
@@ -175,11 +177,12 @@ impl<'a> MapView<'a> {
         let sizes = section_sizes(&counts).ok_or(BlobError::SizeMismatch)?;
         let need = sizes.iter().try_fold(COUNTS_LEN as u64, |a, &s| a.checked_add(s)).ok_or(BlobError::SizeMismatch)?;
         // The field follows the refs and fills the rest of the payload.
-        if (payload.len() as u64) < need.saturating_add(super::field::FIELD_HEADER_LEN as u64) {
+        let total = need.saturating_add(u64::from(counts.field_len));
+        if (payload.len() as u64) < total {
             return Err(BlobError::Truncated);
         }
-        if counts.reserved != 0 {
-            return Err(BlobError::ReservedByte { offset: BLOB_HEADER_LEN + COUNTS_LEN - 4 });
+        if (payload.len() as u64) > total {
+            return Err(BlobError::TrailingBytes);
         }
         let mut at = COUNTS_LEN;
         let obstacles = section(payload, &mut at, sizes[0])?;
@@ -532,7 +535,7 @@ impl<const PIECES: usize, const VERTS: usize, const CELLS: usize, const REFS: us
             cols: g.cols as u32,
             rows: g.rows as u32,
             refs: g.refs.len() as u32,
-            reserved: 0,
+            field_len: field.len() as u32,
         };
         let mut pos = BLOB_HEADER_LEN;
         let mut put = |bytes: &[u8]| {
