@@ -231,7 +231,7 @@ impl LocalizerConfig {
         verify_keep: 16,
         handoff_lead: 25.0,
         handoff_lead_awake: 60.0,
-        handoff_sigma_floor: [0.03, 0.03, 1.0 * core::f32::consts::PI / 180.0],
+        handoff_sigma_floor: [0.10, 0.10, 3.0 * core::f32::consts::PI / 180.0],
         wake_sigma: [0.5, 0.5, 15.0 * core::f32::consts::PI / 180.0],
         wake_sigma_scale: 3.0,
         wake_global: 0.3,
@@ -313,6 +313,14 @@ pub struct Localizer<const N: usize> {
     offset: [f32; 3],
     /// The particles' estimate at the cycle's start and its covariance.
     cluster: Option<Cluster>,
+    /// The strongest pose found away from the cluster (at the cycle's
+    /// start), and the cluster's lead over it summed over every cycle since
+    /// it was found (nats): kept from cycle to cycle, because the sweep
+    /// visits a node only every few cycles and the history holds 8, and an
+    /// alias that only a feature driven past long ago tells apart must
+    /// neither count as beaten when it is not proposed nor draw level when
+    /// the feature leaves the history.
+    rival: Option<([f32; 3], f32)>,
     converged: u8,
     sweep: Sweep,
     history: History,
@@ -353,6 +361,7 @@ impl<const N: usize> Localizer<N> {
             dropped: 0,
             offset: [0.0; 3],
             cluster: None,
+            rival: None,
             converged: 0,
             sweep: Sweep::default(),
             history: History::new(),
@@ -403,6 +412,7 @@ impl<const N: usize> Localizer<N> {
         self.offset = [0.0; 3];
         self.converged = 0;
         self.cluster = None;
+        self.rival = None;
         self.history.clear();
         self.ekf_awake = false;
         self.calm = 0;
@@ -527,7 +537,11 @@ impl<const N: usize> Localizer<N> {
                 // best of them elsewhere on the last cycles' readings.
                 let mut candidates: heapless::Vec<Candidate, SCAN_KEEP> = heapless::Vec::new();
                 self.sweep.scan(&self.sensed, &lookup, &cfg.mcl.beam, &cfg.scan, &mut candidates);
-                let lead = self.verify(&mut candidates, cluster.as_ref(), &lookup);
+                // A cluster that is not the last one has a new rival.
+                if !same {
+                    self.rival = None;
+                }
+                let (lead, rival) = self.verify(&mut candidates, cluster.as_ref(), &lookup);
                 report.lead = lead;
                 // While the EKF beside the particles still has its own
                 // readings (its gate's monitor does not say lost), the
@@ -569,6 +583,8 @@ impl<const N: usize> Localizer<N> {
                             c.mean = compose(&c.mean, &self.offset);
                             c
                         });
+                        // The rival too.
+                        self.rival = rival.map(|(r, d)| (compose(&r, &self.offset), d));
                         // The particles' heaviest cluster holds half the weight
                         // where the EKF beside them is, cycle after cycle: it
                         // was a false alarm, and the search ends (the fit
@@ -592,6 +608,7 @@ impl<const N: usize> Localizer<N> {
                             self.ekf_awake = false;
                             self.calm = 0;
                             self.cluster = None;
+                            self.rival = None;
                             self.fit.1 = self.fit.0;
                             self.misfit = 0;
                             self.counts.calmed += 1;
@@ -673,17 +690,23 @@ impl<const N: usize> Localizer<N> {
     /// Scores the scan's candidates and the heaviest cluster's mean on the
     /// history and this cycle: a candidate ahead by the margin becomes
     /// `verified_share` of the set.
-    /// Returns how far the cluster leads the best candidate away from it
-    /// (more than a metre or 20°), nats (`+∞` with none, `−∞` with no cluster).
+    /// Returns how far the cluster leads the strongest pose away from it
+    /// (more than a metre or 20°), nats (`+∞` with none, `−∞` with no
+    /// cluster), and that pose with the lead, the rival to keep: the
+    /// cluster's lead over a candidate is measured on the history; over the
+    /// rival kept from earlier cycles it is the lead it had plus this
+    /// cycle's readings' say, and whichever is the smaller stands. A rival
+    /// that leads the cluster by the margin goes into the set like a
+    /// verified candidate.
     fn verify(
         &self,
         candidates: &mut heapless::Vec<Candidate, SCAN_KEEP>,
         cluster: Option<&Cluster>,
         lookup: &FieldLookup<'_, '_>,
-    ) -> f32 {
+    ) -> (f32, Option<([f32; 3], f32)>) {
         let c = &self.cfg;
-        if candidates.is_empty() {
-            return if cluster.is_some() { f32::INFINITY } else { f32::NEG_INFINITY };
+        if candidates.is_empty() && self.rival.is_none() {
+            return (if cluster.is_some() { f32::INFINITY } else { f32::NEG_INFINITY }, None);
         }
         let extra = c.verify_sigma_mm * c.verify_sigma_mm;
         let beam = &c.mcl.beam;
@@ -734,17 +757,45 @@ impl<const N: usize> Localizer<N> {
             }
             (best, s)
         };
-        let own = cluster.map_or(f32::NEG_INFINITY, |k| refine(k.mean, score(&k.mean)).1);
+        let (own_pose, own) = match cluster {
+            Some(k) => refine(k.mean, score(&k.mean)),
+            None => ([0.0; 3], f32::NEG_INFINITY),
+        };
         let elsewhere = |p: &[f32; 3]| {
             cluster.is_none_or(|k| {
                 let (dx, dy) = (p[0] - k.mean[0], p[1] - k.mean[1]);
                 dx * dx + dy * dy > 1.0 || wrap(p[2] - k.mean[2]).abs() > 20.0 * core::f32::consts::PI / 180.0
             })
         };
-        let mut other = f32::NEG_INFINITY;
+        let mut rival = None;
+        let mut lead = if cluster.is_some() { f32::INFINITY } else { f32::NEG_INFINITY };
         if let Some(k) = candidates.iter_mut().find(|k| elsewhere(&k.pose)) {
             (k.pose, k.score) = refine(k.pose, k.score);
-            other = k.score;
+            lead = own - k.score;
+            rival = Some((k.pose, lead));
+        }
+        // With no cluster there is nothing to lead, and no rival to keep.
+        let kept = self.rival.filter(|(r, _)| cluster.is_some() && elsewhere(r)).and_then(|(r, lead)| {
+            let (p, _) = refine(r, score(&r));
+            // This cycle's readings alone, at the two refined poses.
+            let now = |q: &[f32; 3]| ParticleSet::<0>::log_likelihood(q, &self.sensed, lookup, beam, extra);
+            let lead = lead + now(&own_pose) - now(&p);
+            elsewhere(&p).then_some((p, lead))
+        });
+        if let Some((p, lead)) = kept {
+            // The same hypothesis as this cycle's candidate keeps its sum;
+            // another one stands if it is the stronger.
+            let near = |a: &[f32; 3], b: &[f32; 3]| {
+                let (dx, dy) = (a[0] - b[0], a[1] - b[1]);
+                dx * dx + dy * dy <= 1.0 && wrap(a[2] - b[2]).abs() <= 20.0 * core::f32::consts::PI / 180.0
+            };
+            if rival.is_none_or(|(q, d)| near(&p, &q) || lead < d) {
+                rival = Some((p, lead));
+            }
+        }
+        let rival = rival.filter(|_| cluster.is_some());
+        if let Some((_, d)) = rival {
+            lead = d;
         }
         if self.ekf_awake {
             // The EKF beside the particles is a hypothesis too: a cluster
@@ -753,15 +804,22 @@ impl<const N: usize> Localizer<N> {
             let x = self.ekf_at_cycle_start();
             if elsewhere(&x) {
                 let ekf = self.history.score(&x, &self.sensed, lookup, beam, extra);
-                other = other.max(ekf + c.handoff_lead_awake - c.handoff_lead);
+                lead = lead.min(own - (ekf + c.handoff_lead_awake - c.handoff_lead));
             }
         }
+        let share = ((c.verified_share * self.particles.len() as f32) as u16).max(1);
         if let Some(first) = candidates.first_mut() {
             if !self.history.is_empty() && first.score > own + c.verify_margin {
-                first.copies = ((c.verified_share * self.particles.len() as f32) as u16).max(1);
+                first.copies = share;
             }
         }
-        own - other
+        if let Some((p, d)) = rival {
+            if d < -c.verify_margin && candidates.first().is_none_or(|k| k.copies <= 1) {
+                candidates.truncate(SCAN_KEEP - 1);
+                let _ = candidates.insert(0, Candidate { pose: p, score: own - d, copies: share });
+            }
+        }
+        (lead, rival)
     }
 
     /// The EKF starts at the cluster (at the cycle's start), then takes the
@@ -779,6 +837,7 @@ impl<const N: usize> Localizer<N> {
         self.mode = Mode::Tracking;
         self.converged = 0;
         self.cluster = None;
+        self.rival = None;
         self.counts.handoffs += 1;
         Ok(())
     }
@@ -799,6 +858,7 @@ impl<const N: usize> Localizer<N> {
         self.ekf_awake = true;
         self.calm = 0;
         self.converged = 0;
+        self.rival = None;
         self.cluster = self.particles.cluster(c.handoff_radius_m, c.handoff_angle_rad);
         self.counts.wakes += 1;
         Ok(())

@@ -134,9 +134,16 @@ impl Sweep {
         let apart = (dirs as f32 * 20.0 / 360.0) as usize;
         let mut scored = 0u32;
         let mut visited = 0u32;
-        // The best `keep` so far, the worst on top (a min-heap).
-        let mut best: heapless::binary_heap::BinaryHeap<(i32, u32, u8), heapless::binary_heap::Min, SCAN_KEEP> =
-            heapless::binary_heap::BinaryHeap::new();
+        // Two lists. The best `keep − keep/3` by score alone (one place's
+        // neighbouring nodes crowd it: the refinement wants them); and the
+        // best `keep/3` no two within a metre and 20° of each other (the
+        // better kept), so that an alias equal to the best place on the
+        // readings but a little worse on the node grid is still proposed:
+        // without it the verification never sees a rival and hands off to
+        // whichever of two identical rooms scored a node higher.
+        let n_diverse = keep / 3;
+        let mut best = Kept::list(keep - n_diverse);
+        let mut diverse = Kept::list(n_diverse);
         while scored < u32::from(cfg.nodes_per_cycle) && visited < nodes {
             let n = self.next.checked_rem(nodes).unwrap_or(0);
             self.next = (n + step).checked_rem(nodes).unwrap_or(0);
@@ -183,30 +190,98 @@ impl Sweep {
                 }
             }
             for &(score, b) in top.iter().filter(|t| t.0 > i32::MIN) {
-                if best.len() < keep {
-                    let _ = best.push((score, n, b as u8));
-                } else if best.peek().is_some_and(|w| score > w.0) {
-                    let _ = best.pop();
-                    let _ = best.push((score, n, b as u8));
+                if !best.wants(score) && !diverse.wants(score) {
+                    continue;
                 }
-            }
-        }
-        // Best first: the min-heap pops the worst first.
-        let mut sorted: heapless::Vec<(i32, u32, u8), SCAN_KEEP> = heapless::Vec::new();
-        while let Some(c) = best.pop() {
-            let _ = sorted.push(c);
-        }
-        sorted.reverse();
-        let best = sorted;
-        for &(score, n, b) in &best {
-            if let Some((x, y)) = f.position_mm(n) {
-                let th = crate::referencing::wrap(b as f32 * core::f32::consts::TAU / dirs as f32);
-                let _ = out.push(Candidate {
-                    pose: [x as f32 * 1e-3, y as f32 * 1e-3, th],
-                    score: score as f32 / 16.0,
-                    copies: 1,
+                let Some((x, y)) = f.position_mm(n) else { continue };
+                let new = Kept { score, x, y, dir: b as u8 };
+                best.offer(new, |_| false);
+                diverse.offer(new, |k| {
+                    let (dx, dy) = (i64::from(k.x) - i64::from(x), i64::from(k.y) - i64::from(y));
+                    dx * dx + dy * dy <= APART_MM * APART_MM && bins_apart(usize::from(k.dir), b, dirs) <= apart
                 });
             }
+        }
+        // The diverse ones the best list already holds are not repeated.
+        for k in diverse.kept.iter() {
+            if !best.kept.iter().any(|b| (b.x, b.y, b.dir) == (k.x, k.y, k.dir)) {
+                let _ = best.kept.push(*k);
+            }
+        }
+        let mut best = best.kept;
+        // Best first: an insertion sort (at most SCAN_KEEP).
+        for i in 1..best.len() {
+            let mut j = i;
+            while j > 0 {
+                let (Some(a), Some(b)) = (best.get(j - 1), best.get(j)) else { break };
+                if a.score >= b.score {
+                    break;
+                }
+                best.swap(j - 1, j);
+                j -= 1;
+            }
+        }
+        for k in &best {
+            let th = crate::referencing::wrap(f32::from(k.dir) * core::f32::consts::TAU / dirs as f32);
+            let _ = out.push(Candidate {
+                pose: [k.x as f32 * 1e-3, k.y as f32 * 1e-3, th],
+                score: k.score as f32 / 16.0,
+                copies: 1,
+            });
+        }
+    }
+}
+
+/// How far apart two proposals must stand, mm (or 20° in heading).
+const APART_MM: i64 = 1_000;
+
+/// A proposal while the sweep runs: its score (1/16 nat), node position
+/// (mm) and heading bin.
+#[derive(Clone, Copy)]
+struct Kept {
+    score: i32,
+    x: i32,
+    y: i32,
+    dir: u8,
+}
+
+/// The best `cap` proposals so far (unsorted), and the worst of them once
+/// full.
+struct KeptList {
+    kept: heapless::Vec<Kept, SCAN_KEEP>,
+    cap: usize,
+    worst: i32,
+}
+
+impl Kept {
+    fn list(cap: usize) -> KeptList {
+        KeptList { kept: heapless::Vec::new(), cap: cap.min(SCAN_KEEP), worst: i32::MIN }
+    }
+}
+
+impl KeptList {
+    /// Whether a proposal of `score` could enter.
+    fn wants(&self, score: i32) -> bool {
+        self.cap > 0 && (self.kept.len() < self.cap || score > self.worst)
+    }
+
+    /// Offers `new`: it replaces a kept proposal `near` it if better (and
+    /// is dropped if not), else takes a free place or the worst one's.
+    fn offer(&mut self, new: Kept, near: impl Fn(&Kept) -> bool) {
+        if !self.wants(new.score) {
+            return;
+        }
+        if let Some(k) = self.kept.iter_mut().find(|k| near(k)) {
+            if k.score < new.score {
+                *k = new;
+            }
+        } else if self.kept.len() < self.cap {
+            let _ = self.kept.push(new);
+        } else if let Some(k) = self.kept.iter_mut().min_by_key(|k| k.score) {
+            *k = new;
+        }
+        if self.kept.len() >= self.cap {
+            self.worst = self.kept.iter().map(|k| k.score).min().unwrap_or(i32::MIN);
         }
     }
 }
