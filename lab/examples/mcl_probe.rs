@@ -60,6 +60,13 @@ fn main() {
     let mut dacc = vec![[0f32; 8]; disp.len()];
     let mut acc_truth = 0f32;
     let truth0 = records[0].truth;
+    // ALIAS=cx,cy: the truth's half-turn about (cx, cy), carried by the
+    // same motion, against the truth cycle by cycle (a symmetric map).
+    let alias: Option<[f32; 3]> = std::env::var("ALIAS").ok().map(|v| {
+        let c: Vec<f32> = v.split(',').map(|x| x.parse().unwrap()).collect();
+        [2.0 * c[0] - truth0[0], 2.0 * c[1] - truth0[1], truth0[2] + std::f32::consts::PI]
+    });
+    let mut acc_alias = 0f32;
     let temper = env("TEMPER", 1.0);
     // Group by cycle.
     let mut c = 0;
@@ -109,6 +116,17 @@ fn main() {
         let (gx, gy) = (t0[0] - truth0[0], t0[1] - truth0[1]);
         let rel = [c0 * gx + s0 * gy, -s0 * gx + c0 * gy, t0[2] - truth0[2]];
         acc_truth += temper * lt;
+        if let Some(st) = alias {
+            let (s1, c1) = (st[2].sin(), st[2].cos());
+            let p = [st[0] + c1 * rel[0] - s1 * rel[1], st[1] + s1 * rel[0] + c1 * rel[1], st[2] + rel[2]];
+            let la = ll(&p);
+            acc_alias += la;
+            println!(
+                "cycle {c}: truth {:?} {lt:.1}, alias {la:.1}; summed truth - alias {:.1}",
+                t0,
+                acc_truth - acc_alias
+            );
+        }
         for (k, st) in starts.iter().enumerate() {
             let (s1, c1) = (st[2].sin(), st[2].cos());
             let p = [st[0] + c1 * rel[0] - s1 * rel[1], st[1] + s1 * rel[0] + c1 * rel[1], st[2] + rel[2]];

@@ -13,18 +13,8 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::sync::OnceLock;
 
-use common::{lab, root, shared_map, tmp};
+use common::{lab, root, run_json, s, shared_map, tmp};
 use serde_json::Value;
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
-
-fn run_json(args: &[&str]) -> Value {
-    let o = lab().args(args).output().unwrap();
-    assert!(o.status.success(), "{args:?} failed: {}", String::from_utf8_lossy(&o.stderr));
-    serde_json::from_slice(&o.stdout).unwrap()
-}
 
 /// A simulated depot run's log (true pose as reference), made once.
 fn run_log() -> &'static PathBuf {

@@ -11,21 +11,10 @@
 
 mod common;
 
-use std::path::Path;
 use std::process::Command;
 
-use common::{board_binary, lab, root, shared_map, tmp};
+use common::{board_binary, lab, root, run_json, s, shared_map, tmp};
 use serde_json::Value;
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
-
-fn run_json(args: &[&str]) -> Value {
-    let o = lab().args(args).output().unwrap();
-    assert!(o.status.success(), "{args:?} failed: {}", String::from_utf8_lossy(&o.stderr));
-    serde_json::from_slice(&o.stdout).unwrap()
-}
 
 #[test]
 fn a_bag_recorded_on_bookstore_runs_on_the_board_as_on_the_host() {

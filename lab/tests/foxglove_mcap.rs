@@ -8,18 +8,8 @@ mod common;
 use std::path::Path;
 use std::process::Command;
 
-use common::{lab, root, shared_map, tmp};
+use common::{lab, root, run_json, s, shared_map, tmp};
 use serde_json::Value;
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
-
-fn run_json(args: &[&str]) -> Value {
-    let o = lab().args(args).output().unwrap();
-    assert!(o.status.success(), "{args:?} failed: {}", String::from_utf8_lossy(&o.stderr));
-    serde_json::from_slice(&o.stdout).unwrap()
-}
 
 /// Runs the reader on `mcap` against `report`; its summary, or its failure.
 fn check(mcap: &Path, report: &Value) -> Result<Value, String> {

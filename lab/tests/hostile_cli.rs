@@ -6,12 +6,12 @@
 //! derivation), within a bounded time, never a panic, a hang or silent
 //! nonsense. The table in docs/robustness.md lists the same cases.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 mod common;
-use common::root;
+use common::{root, s};
 
 use serde_json::Value;
 
@@ -76,10 +76,6 @@ fn scratch(name: &str, text: &str) -> PathBuf {
     let p = d.join(name);
     std::fs::write(&p, text).unwrap();
     p
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
 }
 
 #[test]

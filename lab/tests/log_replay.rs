@@ -11,18 +11,7 @@ mod common;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use common::{board_binary, lab, root, shared_map, tmp};
-use serde_json::Value;
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
-
-fn run_json(args: &[&str]) -> Value {
-    let o = lab().args(args).output().unwrap();
-    assert!(o.status.success(), "{args:?} failed: {}", String::from_utf8_lossy(&o.stderr));
-    serde_json::from_slice(&o.stdout).unwrap()
-}
+use common::{board_binary, lab, root, run_json, s, shared_map, tmp};
 
 /// The figures `replay` shares with `simulate`.
 const SHARED: [&str; 8] =

@@ -9,7 +9,7 @@ mod common;
 use std::path::{Path, PathBuf};
 use std::process::Output;
 
-use common::{lab, root, shared_map, simulate};
+use common::{lab, root, s, shared_map, simulate};
 use serde_json::Value;
 
 fn office() -> PathBuf {
@@ -22,10 +22,6 @@ fn scratch(test: &str) -> PathBuf {
     let _ = std::fs::remove_dir_all(&d);
     std::fs::create_dir_all(&d).unwrap();
     d
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
 }
 
 fn run(args: &[&str]) -> Output {

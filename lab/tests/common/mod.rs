@@ -31,6 +31,19 @@ pub fn num(v: &serde_json::Value, path: &str) -> f64 {
     x.as_f64().unwrap_or_else(|| panic!("{path} is not a number: {x}"))
 }
 
+/// A path as the `&str` a command line takes.
+pub fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+/// Runs the lab with `args`, checks it succeeded, and returns the JSON it
+/// printed.
+pub fn run_json(args: &[&str]) -> serde_json::Value {
+    let o = lab().args(args).output().unwrap();
+    assert!(o.status.success(), "{args:?} failed: {}", String::from_utf8_lossy(&o.stderr));
+    serde_json::from_slice(&o.stdout).unwrap()
+}
+
 /// The `echoloc-lab` binary under test.
 pub fn lab() -> Command {
     Command::new(env!("CARGO_BIN_EXE_echoloc-lab"))
