@@ -64,10 +64,18 @@ for m in "${maps[@]}"; do
   echo "== depot $m: tile, import, run"
   tile "${m%x*}" "${m#*x}"
   base="$out/depot_$m"
-  cargo run -q --release -p echoloc-lab -- map import "$base.yaml" -o "$base.map" >"$base.json"
+  # Without the localization field (#27): this checks the predictor's
+  # scaling, and with the field the 3x2 map is 3.3 MB, beyond the 2 MiB
+  # partition (a board with such a map keeps a coarser field, or none).
+  cargo run -q --release -p echoloc-lab -- map import "$base.yaml" --no-field -o "$base.map" >"$base.json"
   cat "$base.json"
   pieces[$m]=$(json_field "$base.json" convex_pieces)
   bytes[$m]=$(stat -c %s "$base.map")
+  # QEMU's loader would write a larger file past the partition's end.
+  if [ "${bytes[$m]}" -gt $((2 * 1024 * 1024)) ]; then
+    echo "FAIL: depot $m: ${bytes[$m]} bytes do not fit the 2 MiB partition" >&2
+    exit 1
+  fi
   if ! log=$(run_fw "$base.map" 2>&1); then
     echo "$log"
     echo "FAIL: bigmap on depot $m exited non-zero" >&2
