@@ -1,6 +1,6 @@
 //! The run through the core, reading by reading, as the firmware runs it:
 //! dead reckoning from the odometry alone; the paper's threshold method on
-//! its own predictions; and the EKF ([`Referencer`]) with the quantised
+//! its own predictions; and the EKF ([`Referencer`](echoloc::referencing::Referencer)) with the quantised
 //! credence net, predicting each transducer at the current estimate before
 //! judging its reading.
 
