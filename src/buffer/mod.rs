@@ -43,26 +43,54 @@ pub enum BufferError {
 pub type Buffered = Vec<Point, MAX_BUFFERED_VERTICES>;
 
 /// The circumscribing octagon's short half-side `s` for apothem `a`.
+///
+/// `s = ⌈a·√2⌉ − a`, the least `s` with `(a + s)² ≥ 2a²`; exact for every
+/// `u32`. For `a ≥ 1`, `2a²` is never a square, so `⌈√(2a²)⌉ = ⌊√(2a²)⌋ + 1`.
 pub fn octagon_s(a: u32) -> u32 {
-    let a = a as u64;
+    let a64 = u64::from(a);
+    if a == 0 {
+        return 0;
+    }
+    if a64 < 1 << 31 {
+        // 2a² < 2⁶³: in u64, and the bound is visible to the compiler.
+        let r = isqrt(2 * a64 * a64).min(u64::from(u32::MAX));
+        return ((r + 1).saturating_sub(a64)).min(u64::from(u32::MAX)) as u32;
+    }
+    // Beyond 2³¹ (no map needs it): in u128. `isqrt(⌊2a²/4⌋)·2` is at most 2
+    // below `√(2a²)`; four steps settle it. The saturating and checked forms
+    // are exact (every value stays below 2⁷⁰) and show the compiler so.
+    let a = u128::from(a);
     let target = 2 * a * a;
-    // Start from the integer square root, then settle exactly.
-    let mut s = isqrt(target).saturating_sub(a);
-    while (a + s) * (a + s) < target {
-        s += 1;
+    let root = (u128::from(isqrt((target >> 2) as u64)) << 1).min(1 << 34);
+    let mut s = root.saturating_sub(a);
+    let below = |r: u128| r.checked_mul(r).is_some_and(|r2| r2 < target);
+    for _ in 0..4 {
+        if below(a.saturating_add(s)) {
+            s = s.saturating_add(1);
+        }
     }
-    while s > 0 && (a + s - 1) * (a + s - 1) >= target {
-        s -= 1;
-    }
-    s as u32
+    // s < a ≤ u32::MAX.
+    s.min(u128::from(u32::MAX)) as u32
 }
 
 /// The octagon circumscribing the disk of radius `a`, counter-clockwise,
 /// starting at its lowest-then-leftmost vertex. For `a = 1`, where `s = a`,
-/// it degenerates to the square `(±1, ±1)`.
-pub fn octagon(a: u32) -> Vec<Point, 8> {
-    let s = octagon_s(a) as i32;
-    let a = a as i32;
+/// it degenerates to the square `(±1, ±1)`. Refused above
+/// [`MAX_BUFFER_MM`] (`BufferTooLarge`), which keeps every vertex in range.
+pub fn octagon(a: u32) -> Result<Vec<Point, 8>, BufferError> {
+    if a > MAX_BUFFER_MM {
+        return Err(BufferError::BufferTooLarge);
+    }
+    Ok(octagon_within(a))
+}
+
+/// [`octagon`] for `a ≤ MAX_BUFFER_MM` (checked by the caller); built in
+/// place, without a `Result` to copy out of.
+#[inline(always)]
+fn octagon_within(a: u32) -> Vec<Point, 8> {
+    // Both below 2¹⁷ (the `min`s): the negations below cannot overflow.
+    let s = octagon_s(a).min(MAX_BUFFER_MM) as i32;
+    let a = a.min(MAX_BUFFER_MM) as i32;
     let all = [
         Point::new(-s, -a),
         Point::new(s, -a),
@@ -98,27 +126,42 @@ pub fn grow(piece: Convex<'_>, t_b: u32) -> Result<Buffered, BufferError> {
     if p.iter().any(|v| (v.x as i64).abs() > lim || (v.y as i64).abs() > lim) {
         return Err(BufferError::CoordinateOutOfRange);
     }
-    let q = octagon(t_b);
+    let q = octagon_within(t_b);
     // Minkowski sum of convex polygons: start at both lowest-leftmost
     // vertices and merge the edge sequences by polar angle (exact compare).
     let start = |v: &[Point]| (0..v.len()).min_by_key(|&i| (v[i].y, v[i].x)).unwrap_or(0);
     let (n, m) = (p.len(), q.len());
+    // The sum has at least `n` vertices: a larger piece cannot fit the
+    // result; refused before the merge, which also shows the compiler
+    // that the indices below stay small.
+    if n > MAX_BUFFERED_VERTICES {
+        return Err(BufferError::TooManyVertices);
+    }
     if n == 0 || m == 0 {
         // Never: a `Convex` has two vertices or more, an octagon four. The
         // test lets the compiler drop the `% 0` panic paths below.
         return Ok(out);
     }
-    let (sp, sq) = (start(p), 0);
+    let sp = start(p);
     let (mut i, mut j) = (0usize, 0usize);
-    while i < n || j < m {
-        let a = p[(sp + i) % n];
-        let b = q[(sq + j) % m];
-        let v = Point::new(a.x + b.x, a.y + b.y);
+    // `i ≤ n` and `j ≤ m` throughout (a side stops once it is done); the
+    // test makes it visible, so the counts below cannot overflow.
+    while (i < n || j < m) && i <= n && j <= m {
+        // Positions round both outlines. `sp < n ≤ 32`, `i ≤ n`, `j ≤ m ≤ 8`:
+        // the `min`s change nothing but show the compiler these sums are small.
+        let (ki, kj) = (sp.min(MAX_BUFFERED_VERTICES) + i.min(MAX_BUFFERED_VERTICES), j.min(8));
+        let (a, pa) = (p[ki % n], p[(ki + 1) % n]);
+        let (b, qb) = (q[kj % m], q[(kj + 1) % m]);
+        // In range by the check against `lim` above; checked all the same,
+        // because the vertices come from memory the compiler cannot see.
+        let (Some(x), Some(y)) = (a.x.checked_add(b.x), a.y.checked_add(b.y)) else {
+            return Err(BufferError::CoordinateOutOfRange);
+        };
+        let v = Point::new(x, y);
         if out.last() != Some(&v) {
             out.push(v).map_err(|_| BufferError::TooManyVertices)?;
         }
-        let ep = p[(sp + i + 1) % n].sub(a);
-        let eq = q[(sq + j + 1) % m].sub(b);
+        let (ep, eq) = (pa.sub(a), qb.sub(b));
         let c = if i == n {
             -1
         } else if j == m {
@@ -130,14 +173,15 @@ pub fn grow(piece: Convex<'_>, t_b: u32) -> Result<Buffered, BufferError> {
         if c >= 0 {
             i += 1;
         }
-        if c <= 0 {
+        // (`j < m` holds whenever `c ≤ 0`: said for the compiler.)
+        if c <= 0 && j < m {
             j += 1;
         }
     }
     // Drop the closing duplicate and any collinear vertex (parallel edges of a
     // wall's two faces with an octagon edge can line up).
     if out.len() > 1 && out.first() == out.last() {
-        out.pop();
+        out.truncate(out.len() - 1);
     }
     let mut k = 0;
     while out.len() > 3 && k < out.len() {
@@ -154,7 +198,7 @@ pub fn grow(piece: Convex<'_>, t_b: u32) -> Result<Buffered, BufferError> {
                     }
                 }
             }
-            out.pop();
+            out.truncate(out.len() - 1);
         } else {
             k += 1;
         }
@@ -191,7 +235,7 @@ mod tests {
             let a64 = a as u64;
             assert!((a64 + s) * (a64 + s) >= 2 * a64 * a64);
             assert!(s == 0 || (a64 + s - 1) * (a64 + s - 1) < 2 * a64 * a64, "s minimal");
-            assert!(Convex::new(&octagon(a)).is_ok());
+            assert!(Convex::new(&octagon(a).unwrap()).is_ok());
         }
         assert_eq!(octagon_s(100), 42); // 100·(√2−1) = 41.42
     }
@@ -202,7 +246,7 @@ mod tests {
         let g = grow(Convex::new(&sq).unwrap(), 100).unwrap();
         let c = Convex::new(&g).unwrap();
         // 4 axis edges lengthened, 4 diagonal corners: area = 10² + 4·10·100 + octagon.
-        let oct = Convex::new(&octagon(100)).unwrap().area2();
+        let oct = Convex::new(&octagon(100).unwrap()).unwrap().area2();
         assert_eq!(c.area2(), 2 * (100 + 4 * 1000) + oct);
         let w = [Point::new(0, 0), Point::new(0, 500)];
         let g = grow(Convex::new(&w).unwrap(), 50).unwrap();

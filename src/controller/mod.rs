@@ -171,15 +171,15 @@ impl<'a, M: MapSource + ?Sized, K: Credence + ?Sized, const N: usize> Controller
         };
         self.cycle = Some(r.cycle);
         self.localizer.odometry(u)?;
-        self.counts.readings += 1;
+        self.counts.readings = self.counts.readings.saturating_add(1);
         let reading = reading_of(&r.outcome);
         match reading {
-            Reading::Echo { .. } => self.counts.echoes += 1,
-            Reading::NoEcho => self.counts.no_echo += 1,
-            Reading::Invalid => self.counts.invalid += 1,
+            Reading::Echo { .. } => self.counts.echoes = self.counts.echoes.saturating_add(1),
+            Reading::NoEcho => self.counts.no_echo = self.counts.no_echo.saturating_add(1),
+            Reading::Invalid => self.counts.invalid = self.counts.invalid.saturating_add(1),
         }
         if matches!(r.outcome, Outcome::Unconfirmed { .. } | Outcome::Crosstalk { .. }) {
-            self.counts.unconfirmed += 1;
+            self.counts.unconfirmed = self.counts.unconfirmed.saturating_add(1);
         }
         let report = self.localizer.reading(self.map, mount, &self.params, self.credence, reading)?;
         Ok(Step { cycle_end, reading, report })
@@ -201,7 +201,7 @@ impl<'a, M: MapSource + ?Sized, K: Credence + ?Sized, const N: usize> Controller
 
     fn close_cycle(&mut self, cycle: u32) -> Result<Option<CycleEnd>, ControllerError> {
         let localizer = self.localizer.end_cycle(self.field)?;
-        self.counts.cycles += 1;
+        self.counts.cycles = self.counts.cycles.saturating_add(1);
         Ok(Some(CycleEnd { cycle, verdicts: localizer.verdicts, updates: localizer.updates, localizer }))
     }
 

@@ -105,7 +105,8 @@ impl Score {
         let (dx, dy) = (f64::from(x[0]) - f64::from(truth[0]), f64::from(x[1]) - f64::from(truth[1]));
         let p = libm::sqrt(dx * dx + dy * dy);
         let h = f64::from(wrap(x[2] - truth[2])).to_degrees();
-        self.readings += 1;
+        // A count that stops at its largest value rather than restarting.
+        self.readings = self.readings.saturating_add(1);
         self.sum_p2 += p * p;
         self.sum_h2 += h * h;
         let n = f64::from(self.readings);
@@ -278,7 +279,7 @@ where
             match ring.poll() {
                 Ok(Some(r)) => break r,
                 Ok(None) => {
-                    waits += 1;
+                    waits = waits.saturating_add(1);
                     if waits > max_waits {
                         return Err(ReplayError::Stalled);
                     }
@@ -296,8 +297,8 @@ where
         let u = odometry(&reading, &record)?;
         let step = controller.step(&u, &reading)?;
         match step.report.update {
-            Some(crate::referencing::Update::Accepted { .. }) => accepted += 1,
-            Some(crate::referencing::Update::Gated { .. }) => gated += 1,
+            Some(crate::referencing::Update::Accepted { .. }) => accepted = accepted.saturating_add(1),
+            Some(crate::referencing::Update::Gated { .. }) => gated = gated.saturating_add(1),
             _ => {}
         }
         score.add(controller.state(), record.truth);

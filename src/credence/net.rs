@@ -72,6 +72,9 @@ pub use super::weights::{FLOAT_WEIGHTS, SHIPPED_WEIGHTS, SIGMOID_TAIL};
 
 /// Hidden units of the 2-10-1 net.
 pub const HIDDEN: usize = 10;
+/// The output sum of [`CredenceNet::kappa_at`] stays below 2⁵¹: each of the
+/// `HIDDEN` terms is an `i32` weight times σ ≤ 2¹⁶.
+const _SUM_FITS: () = assert!(HIDDEN <= 1 << 15);
 
 /// Lowest range of the input domain, mm (MARGE's `R_min`, paper §4.2).
 pub const R_MIN_MM: u32 = 500;
@@ -195,12 +198,17 @@ impl<'w> CredenceNet<'w> {
             // i32 × i32 → i64: one multiply(-accumulate) instruction each on a Cortex-M4.
             let acc = mul(w.w_hidden[j][0].to_bits(), x0) + mul(w.w_hidden[j][1].to_bits(), x1);
             let z = i64::from(w.b_hidden[j].to_bits()) + ((acc + (1 << (FRAC - 1))) >> FRAC);
-            acc_out += mul(w.w_out[j].to_bits(), sigmoid_q16(z));
+            // Each term is below 2³¹ · 2¹⁶ = 2⁴⁷ in magnitude, HIDDEN of them
+            // below 2⁵¹ (`SUM_FITS`): wrapping is exact here.
+            acc_out = acc_out.wrapping_add(mul(w.w_out[j].to_bits(), sigmoid_q16(z)));
         }
-        let z = i64::from(w.b_out.to_bits()) + ((acc_out + (1 << (FRAC - 1))) >> FRAC);
+        // (Both terms below 2⁴⁸ in magnitude after the shift: the sum is exact.)
+        let z = i64::from(w.b_out.to_bits()).wrapping_add(acc_out.wrapping_add(1 << (FRAC - 1)) >> FRAC);
         let k16 = sigmoid_q16(z) as u32;
         // 0 ..= 2¹⁶ → 0 ..= 2¹⁵: fits u16, and 2¹⁵ is exactly Kappa::ONE.
-        Kappa::from_bits(((k16 + 1) >> 1) as u16)
+        // (`div_ceil`: the rounding half-up of `(k16 + 1) >> 1`, with no sum
+        // that could overflow.)
+        Kappa::from_bits(k16.div_ceil(2) as u16)
     }
 }
 
@@ -232,7 +240,8 @@ fn clamped(range_mm: u32, theta_mdeg: i32) -> (u32, u32) {
 }
 
 /// σ(z) for a Q16.16 pre-activation, as Q0.16 in `0 ..= 2¹⁶` (step 3). The
-/// table arithmetic fits `u32`: a step's difference is below 2¹¹ and `f` below 2¹².
+/// table arithmetic is in `i32` on values the compiler sees are small: the
+/// entries are `u16` and `f` is below 2¹², so no step can overflow.
 /// Non-decreasing in `z` (the κ bounds rely on it). A `const fn`, so that the
 /// shipped net's [`KappaBounds`] are computed by the compiler.
 #[inline(always)]
@@ -241,13 +250,14 @@ const fn sigmoid_q16(z: i64) -> i32 {
     let a = if abs < Z_CLAMP as u64 { abs as u32 } else { Z_CLAMP as u32 };
     let i = (a >> STEP_SHIFT) as usize;
     let f = a & ((1 << STEP_SHIFT) - 1);
-    let lo = SIGMOID_TAIL[i].to_bits() as u32;
+    let f = f as i32;
+    let lo = SIGMOID_TAIL[i].to_bits() as i32;
     let u = if i + 1 < SIGMOID_ENTRIES {
-        let next = SIGMOID_TAIL[i + 1].to_bits() as u32;
+        let next = SIGMOID_TAIL[i + 1].to_bits() as i32;
         lo - (((lo - next) * f + (1 << (STEP_SHIFT - 1))) >> STEP_SHIFT)
     } else {
         lo
-    } as i32;
+    };
     if z >= 0 {
         ONE_Q16 - u
     } else {

@@ -212,7 +212,8 @@ impl<const N: usize> RingTiming<N> {
     /// When slot `slot` of cycle `cycle` fires, µs after the cycle-0 start
     /// (wrapping): `cycle·period + slot·slot_us + [cycle odd]·(slot+1)·step`.
     pub const fn fire_offset_us(&self, cycle: u32, slot: usize) -> u32 {
-        let shift = if cycle % 2 == 1 { (slot as u32 + 1).wrapping_mul(self.alt_us) } else { 0 };
+        // Modulo 2³² throughout, `slot` included: every argument has an answer.
+        let shift = if cycle % 2 == 1 { (slot as u32).wrapping_add(1).wrapping_mul(self.alt_us) } else { 0 };
         cycle.wrapping_mul(self.period_us).wrapping_add((slot as u32).wrapping_mul(self.slot_us)).wrapping_add(shift)
     }
 }

@@ -390,10 +390,12 @@ where
 
     /// On to the next slot; point the multiplexer at it during the gap.
     fn advance(&mut self) {
-        self.slot += 1;
-        if self.slot >= N {
+        // Compared before adding (`slot < N`): no sum that could overflow.
+        if self.slot >= N.saturating_sub(1) {
             self.slot = 0;
             self.cycle = self.cycle.wrapping_add(1);
+        } else {
+            self.slot += 1;
         }
         self.state = State::Waiting;
         let next = self.current();

@@ -75,14 +75,15 @@ impl<'a> Convex<'a> {
             let (dx, dy) = b.sub(a);
             dy > 0 || (dy == 0 && dx > 0)
         };
-        let mut crossings = 0;
+        let mut crossings = 0u8;
         for i in 0..n {
             let (a, b, c) = (verts[i], verts[(i + 1) % n], verts[(i + 2) % n]);
             if orient(a, b, c) <= 0 {
                 return Err(ConvexError::NotStrictlyConvex);
             }
             if upper(a, b) && !upper(b, c) {
-                crossings += 1;
+                // Only "exactly one" matters: saturating is exact for that.
+                crossings = crossings.saturating_add(1u8);
             }
         }
         if crossings != 1 {

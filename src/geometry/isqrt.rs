@@ -10,8 +10,10 @@ pub const fn isqrt(n: u64) -> u64 {
         bit >>= 2;
     }
     while bit != 0 {
-        if rem >= root + bit {
-            rem -= root + bit;
+        // `root + bit` never carries: `root` has no bit at or below `bit`'s
+        // position here (the digit-by-digit invariant), so `|` is the sum.
+        if rem >= root | bit {
+            rem -= root | bit;
             root = (root >> 1) + bit;
         } else {
             root >>= 1;

@@ -2,16 +2,27 @@
 
 use super::Point;
 
-/// Cross product of two difference vectors, exact in `i64`.
+/// Cross product of two difference vectors, exact in `i64` when every
+/// component lies within `±(2³¹ − 1)`.
+///
+/// That is the domain: every difference of two in-range points
+/// ([`Point::sub`], `|·| ≤ 2·COORD_MAX`), the windows' edge directions
+/// (`|·| ≤ 2¹⁴`). There each product is below `2⁶²` and the difference
+/// below `2⁶³`, so the two's-complement (wrapping) operations below are the
+/// exact ones; wider components are outside the contract and wrap
+/// (the property test checks exactness over the whole domain against
+/// `i128`).
 #[inline]
 pub const fn cross(u: (i64, i64), v: (i64, i64)) -> i64 {
-    u.0 * v.1 - u.1 * v.0
+    u.0.wrapping_mul(v.1).wrapping_sub(u.1.wrapping_mul(v.0))
 }
 
-/// Dot product of two difference vectors, exact in `i64`.
+/// Dot product of two difference vectors, exact in `i64` when every
+/// component lies within `±(2³¹ − 1)` (the domain of [`cross`]: each
+/// product is at most `(2³¹ − 1)² < 2⁶²`, their sum below `2⁶³`).
 #[inline]
 pub const fn dot(u: (i64, i64), v: (i64, i64)) -> i64 {
-    u.0 * v.0 + u.1 * v.1
+    u.0.wrapping_mul(v.0).wrapping_add(u.1.wrapping_mul(v.1))
 }
 
 /// Twice the signed area of triangle `abc`: positive when `c` lies to the left

@@ -53,10 +53,16 @@ impl core::fmt::Display for FrameError {
 
 impl core::error::Error for FrameError {}
 
-/// Bytes a frame of a payload of `n` bytes (message only) can take.
+/// Bytes a frame of a payload of `n` bytes (message only) can take;
+/// `usize::MAX` for a payload past half the address space (no memory holds
+/// such a frame, and the exact count would not fit).
 pub const fn max_frame_len(n: usize) -> usize {
     // Delimiters, version and CRC around the COBS of n + 5 bytes.
-    2 + cobs::max_encoding_length(n + 5)
+    let m = n.saturating_add(5);
+    if m > usize::MAX / 2 {
+        return usize::MAX;
+    }
+    2 + cobs::max_encoding_length(m)
 }
 
 /// Frames `msg` into `out`; returns the bytes written. `N` is the scratch
@@ -66,11 +72,13 @@ pub fn encode<T: Serialize, const N: usize>(msg: &T, out: &mut [u8]) -> Result<u
     // Every slice through `get`: no panic path. A scratch under 5 bytes, or
     // one the message fills, is TooLarge.
     let payload = raw.get_mut(1..N.saturating_sub(4)).ok_or(EncodeError::TooLarge)?;
-    let n = postcard::to_slice(msg, payload).map_err(|_| EncodeError::TooLarge)?.len() + 1;
+    let n = postcard::to_slice(msg, payload).map_err(|_| EncodeError::TooLarge)?.len().saturating_add(1);
     *raw.first_mut().ok_or(EncodeError::TooLarge)? = PROTOCOL_VERSION;
     let crc = crc32(raw.get(..n).ok_or(EncodeError::TooLarge)?);
-    raw.get_mut(n..n + 4).ok_or(EncodeError::TooLarge)?.copy_from_slice(&crc.to_le_bytes());
-    let body = raw.get(..n + 4).ok_or(EncodeError::TooLarge)?;
+    // (`n ≤ N`: the sum cannot wrap; saturating says so to the compiler.)
+    let end = n.saturating_add(4);
+    raw.get_mut(n..end).ok_or(EncodeError::TooLarge)?.copy_from_slice(&crc.to_le_bytes());
+    let body = raw.get(..end).ok_or(EncodeError::TooLarge)?;
     let Some((first, rest)) = out.split_first_mut() else { return Err(EncodeError::TooLarge) };
     *first = 0;
     let k = cobs::try_encode(body, rest).map_err(|_| EncodeError::TooLarge)?;
@@ -118,7 +126,7 @@ impl<const N: usize> Decoder<N> {
             match self.buf.get_mut(self.len) {
                 Some(slot) => {
                     *slot = byte;
-                    self.len += 1;
+                    self.len = self.len.saturating_add(1);
                 }
                 None => self.overflow = true,
             }
@@ -128,7 +136,7 @@ impl<const N: usize> Decoder<N> {
         self.len = 0;
         self.overflow = false;
         if overflow {
-            self.counts.overflow += 1;
+            self.counts.overflow = self.counts.overflow.saturating_add(1);
             return Some(Err(FrameError::Overflow));
         }
         if len == 0 {
@@ -136,13 +144,13 @@ impl<const N: usize> Decoder<N> {
         }
         let r = self.decode(len);
         match r {
-            Ok(_) => self.counts.ok += 1,
-            Err(FrameError::Overflow) => self.counts.overflow += 1,
-            Err(FrameError::Cobs) => self.counts.cobs += 1,
-            Err(FrameError::Short) => self.counts.short += 1,
-            Err(FrameError::Crc) => self.counts.crc += 1,
-            Err(FrameError::Version(_)) => self.counts.version += 1,
-            Err(FrameError::Decode) => self.counts.decode += 1,
+            Ok(_) => self.counts.ok = self.counts.ok.saturating_add(1),
+            Err(FrameError::Overflow) => self.counts.overflow = self.counts.overflow.saturating_add(1),
+            Err(FrameError::Cobs) => self.counts.cobs = self.counts.cobs.saturating_add(1),
+            Err(FrameError::Short) => self.counts.short = self.counts.short.saturating_add(1),
+            Err(FrameError::Crc) => self.counts.crc = self.counts.crc.saturating_add(1),
+            Err(FrameError::Version(_)) => self.counts.version = self.counts.version.saturating_add(1),
+            Err(FrameError::Decode) => self.counts.decode = self.counts.decode.saturating_add(1),
         }
         Some(r)
     }

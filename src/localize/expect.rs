@@ -73,7 +73,9 @@ impl<'f, 'a> FieldLookup<'f, 'a> {
             return None;
         }
         let (i, j) = (u as u32, v as u32);
-        if i + 1 >= self.cols || j + 1 >= self.rows {
+        // (Checked: a far-off position saturates the cast at `u32::MAX`.)
+        let (Some(i1), Some(j1)) = (i.checked_add(1), j.checked_add(1)) else { return None };
+        if i1 >= self.cols || j1 >= self.rows {
             return None;
         }
         Some((i, j, u - i as f32, v - j as f32))

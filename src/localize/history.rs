@@ -117,8 +117,11 @@ impl History {
         if let Some(f) = self.frames.get_mut(self.head) {
             *f = [0.0; 3];
         }
-        self.head = (self.head + 1) % HISTORY_CYCLES;
-        self.len = (self.len + 1).min(HISTORY_CYCLES);
+        // Compared before adding: the compiler sees neither can overflow.
+        self.head = if self.head >= HISTORY_CYCLES - 1 { 0 } else { self.head + 1 };
+        if self.len < HISTORY_CYCLES {
+            self.len += 1;
+        }
     }
 
     /// Re-expresses every kept reading in the frame of the next cycle's

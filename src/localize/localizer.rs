@@ -616,7 +616,7 @@ impl<const N: usize> Localizer<N> {
                             self.rival = None;
                             self.fit.1 = self.fit.0;
                             self.misfit = 0;
-                            self.counts.calmed += 1;
+                            self.counts.calmed = self.counts.calmed.saturating_add(1);
                             report.calmed = true;
                         }
                     }
@@ -641,9 +641,9 @@ impl<const N: usize> Localizer<N> {
         self.history.push(&self.sensed);
         self.history.rebase(&self.offset);
         match report.mode {
-            Mode::Searching => self.counts.searching += 1,
-            Mode::Tracking => self.counts.tracking += 1,
-            Mode::Lost => self.counts.lost += 1,
+            Mode::Searching => self.counts.searching = self.counts.searching.saturating_add(1),
+            Mode::Tracking => self.counts.tracking = self.counts.tracking.saturating_add(1),
+            Mode::Lost => self.counts.lost = self.counts.lost.saturating_add(1),
         }
         self.sensed.clear();
         self.dropped = 0;
@@ -659,7 +659,8 @@ impl<const N: usize> Localizer<N> {
     /// the gate's counts say so.
     fn monitor(&mut self, lookup: &FieldLookup<'_, '_>, report: &mut CycleReport) -> bool {
         let c = &self.cfg;
-        let k = self.sensed.iter().filter(|r| r.reading != Reading::Invalid).count();
+        // (A fold that saturates: `count` would carry an overflow check.)
+        let k = self.sensed.iter().filter(|r| r.reading != Reading::Invalid).fold(0usize, |n, _| n.saturating_add(1));
         if N == 0 || lookup.field().is_empty() || k < usize::from(c.handoff_min_readings) {
             return false;
         }
@@ -843,7 +844,7 @@ impl<const N: usize> Localizer<N> {
         self.converged = 0;
         self.cluster = None;
         self.rival = None;
-        self.counts.handoffs += 1;
+        self.counts.handoffs = self.counts.handoffs.saturating_add(1);
         Ok(())
     }
 
@@ -865,7 +866,7 @@ impl<const N: usize> Localizer<N> {
         self.converged = 0;
         self.rival = None;
         self.cluster = self.particles.cluster(c.handoff_radius_m, c.handoff_angle_rad);
-        self.counts.wakes += 1;
+        self.counts.wakes = self.counts.wakes.saturating_add(1);
         Ok(())
     }
 

@@ -277,11 +277,11 @@ impl<const N: usize> ParticleSet<N> {
         }
         let mut n = rng.below(nodes);
         // Rejection until a free node, bounded; then the next free one.
-        let mut tries = 0;
+        let mut tries = 0u32;
         while !f.is_free(n) {
-            tries += 1;
+            tries = tries.saturating_add(1);
             n = if tries < 64 { rng.below(nodes) } else { (n + 1).checked_rem(nodes).unwrap_or(0) };
-            if tries > 64 + nodes {
+            if tries > nodes.saturating_add(64) {
                 return None;
             }
         }
@@ -453,7 +453,8 @@ impl<const N: usize> ParticleSet<N> {
     /// the particles' frame) and normalises the weights.
     pub fn weigh(&mut self, sensed: &[Sensed], lookup: &FieldLookup<'_, '_>, cfg: &McConfig) -> Weighed {
         let extra = self.extra_var(cfg);
-        let k = sensed.iter().filter(|r| r.reading != Reading::Invalid).count();
+        // (A fold that saturates: `count` would carry an overflow check.)
+        let k = sensed.iter().filter(|r| r.reading != Reading::Invalid).fold(0usize, |n, _| n.saturating_add(1));
         if self.n == 0 {
             return Weighed::default();
         }
@@ -713,8 +714,9 @@ impl<const N: usize> ParticleSet<N> {
                     }
                     free
                 } else {
-                    next += 1;
-                    next - 1
+                    let s = next;
+                    next = next.saturating_add(1);
+                    s
                 };
                 if let Some(p) = self.pose.get_mut(slot) {
                     *p = src;
@@ -744,10 +746,11 @@ impl<const N: usize> ParticleSet<N> {
         self.injected = inject as f32 / m as f32;
         // The scan's candidates first (jittered within their node and
         // heading bin), then draws over free space.
-        let wanted: usize = candidates.iter().map(|c| usize::from(c.copies.max(1))).sum();
+        let wanted = candidates.iter().fold(0usize, |n, c| n.saturating_add(usize::from(c.copies.max(1))));
         let inject = inject.max(wanted.min(m / 2));
         self.injected = inject as f32 / m as f32;
-        let first_injected = m - inject;
+        // (`inject ≤ m / 2`: saturating only shows it to the compiler.)
+        let first_injected = m.saturating_sub(inject);
         let h = lookup.node_mm() * 1e-3;
         let bin = core::f32::consts::TAU / lookup.field().dirs().max(1) as f32;
         // Candidates in order, each as many times as it has copies.

@@ -69,6 +69,8 @@ pub struct Sweep {
 /// The neighbour offsets a transducer may fall on: −2..=2 nodes each way.
 const REACH: i32 = 2;
 const SIDE: usize = (2 * REACH + 1) as usize;
+/// A node's score sums one byte (|·| ≤ 128) per reading: far inside `i32`.
+const _SCORE_FITS: () = assert!(SCAN_READINGS as i64 * 128 < i32::MAX as i64);
 
 /// A stride through `n` nodes that visits each once per pass and spreads
 /// consecutive visits over the map: a prime near n·0.618 not dividing n.
@@ -117,8 +119,9 @@ impl Sweep {
                 let th = b as f32 * core::f32::consts::TAU / dirs as f32;
                 let (s, c) = sin_cos(th);
                 let (x, y) = ((c * r.pose[0] - s * r.pose[1]) * 1e3, (s * r.pose[0] + c * r.pose[1]) * 1e3);
-                let di = libm::roundf(x / node_mm).clamp(-REACH as f32, REACH as f32) as i32;
-                let dj = libm::roundf(y / node_mm).clamp(-REACH as f32, REACH as f32) as i32;
+                // Clamped again as integers: the compiler sees `nb < 25`.
+                let di = (libm::roundf(x / node_mm).clamp(-REACH as f32, REACH as f32) as i32).clamp(-REACH, REACH);
+                let dj = (libm::roundf(y / node_mm).clamp(-REACH as f32, REACH as f32) as i32).clamp(-REACH, REACH);
                 let nb = ((dj + REACH) * SIDE as i32 + (di + REACH)) as u8;
                 let d = libm::roundf((th + r.pose[2]) * dirs as f32 / core::f32::consts::TAU) as i32;
                 *slot = (nb, d.checked_rem_euclid(dirs as i32).unwrap_or(0) as u8);
@@ -146,7 +149,11 @@ impl Sweep {
         let mut diverse = Kept::list(n_diverse);
         while scored < u32::from(cfg.nodes_per_cycle) && visited < nodes {
             let n = self.next.checked_rem(nodes).unwrap_or(0);
-            self.next = (n + step).checked_rem(nodes).unwrap_or(0);
+            // `n + step` past the end wraps to the start (`step ≤ nodes`),
+            // written without a sum that could pass `u32::MAX`.
+            let to_end = nodes - step.min(nodes);
+            // (Below `nodes` in the second case: the sum in u64 is exact.)
+            self.next = if n >= to_end { n - to_end } else { (u64::from(n) + u64::from(step)) as u32 };
             visited += 1;
             if !f.is_free(n) {
                 continue;
@@ -157,7 +164,7 @@ impl Sweep {
             // (32 places, 25 used: a masked index needs no bounds check.)
             let mut nb: [&[u8]; 32] = [&[]; 32];
             for (j, line) in nb.chunks_mut(SIDE).enumerate() {
-                let rr = row as i32 + j as i32 - REACH;
+                let rr = i64::from(row) + j as i64 - i64::from(REACH);
                 if j >= SIDE {
                     break;
                 }
@@ -165,7 +172,7 @@ impl Sweep {
                     continue;
                 }
                 for (i, e) in line.iter_mut().enumerate() {
-                    let cc = col as i32 + i as i32 - REACH;
+                    let cc = i64::from(col) + i as i64 - i64::from(REACH);
                     if cc >= 0 {
                         *e = f.node_at(cc as u32, rr as u32).and_then(|m| f.entries(m)).unwrap_or(&[]);
                     }
@@ -181,10 +188,12 @@ impl Sweep {
             for (l, g) in lut.iter().zip(geo) {
                 for (s, &(nbi, d)) in scores.iter_mut().zip(g.iter()).take(dirs) {
                     // Off the field: as bad as the worst byte, and a little worse.
-                    *s += match nb[usize::from(nbi) & 31].get(usize::from(d)) {
+                    // At most SCAN_READINGS terms of |·| ≤ 128 (`SCORE_FITS`):
+                    // the sum never nears i32's limits, so wrapping is exact.
+                    *s = s.wrapping_add(match nb[usize::from(nbi) & 31].get(usize::from(d)) {
                         Some(&v) => i32::from(l[usize::from(v)]),
                         None => -128,
-                    };
+                    });
                 }
             }
             let mut top = [(i32::MIN, 0usize); 2];
@@ -208,7 +217,12 @@ impl Sweep {
                 best.offer(new, |_| false);
                 diverse.offer(new, |k| {
                     let (dx, dy) = (i64::from(k.x) - i64::from(x), i64::from(k.y) - i64::from(y));
-                    dx * dx + dy * dy <= APART_MM * APART_MM && bins_apart(usize::from(k.dir), b, dirs) <= apart
+                    // Each within APART_MM first: then the squares are small.
+                    let (ax, ay, near) = (dx.unsigned_abs(), dy.unsigned_abs(), APART_MM as u64);
+                    ax <= near
+                        && ay <= near
+                        && ax * ax + ay * ay <= near * near
+                        && bins_apart(usize::from(k.dir), b, dirs) <= apart
                 });
             }
         }

@@ -353,7 +353,9 @@ impl<'a> FieldView<'a> {
         }
         let tail = h.nodes % 32;
         let last_ok = tail == 0 || self.free.last().is_none_or(|&w| w >> tail == 0);
-        let count: u32 = self.free.iter().map(|w| w.count_ones()).sum();
+        // Wrapping is exact: `free` holds ⌈nodes / 32⌉ words (checked above)
+        // and, with the tail clear, at most `nodes` ≤ u32::MAX bits are set.
+        let count: u32 = self.free.iter().fold(0u32, |n, w| n.wrapping_add(w.count_ones()));
         if !last_ok || count != h.free_nodes {
             return Err(BlobError::Field(FieldError::FreeBits));
         }
@@ -427,7 +429,8 @@ impl<'a> FieldView<'a> {
                 if col < end {
                     // Validated: a run's nodes are numbered below `nodes` (u32).
                     let n = r.first.wrapping_add(col - c0);
-                    if col + 1 < end {
+                    // (`col + 1 < end`, as a difference: `col < end` here.)
+                    if end - col > 1 {
                         return (Some(n), Some(n.wrapping_add(1)));
                     }
                     first = Some(n);

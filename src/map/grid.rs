@@ -168,7 +168,7 @@ impl GridRef<'_> {
             let y_start = self.origin.y as i64 + y as i64 * cell;
             for x in x0..=x1 {
                 let x_start = self.origin.x as i64 + x as i64 * cell;
-                stats.cells += 1;
+                stats.cells = stats.cells.wrapping_add(1);
                 for &id in self.cell(y as usize * self.cols as usize + x as usize) {
                     let b = bbox(id);
                     if !b.overlaps(&area) {
@@ -182,7 +182,7 @@ impl GridRef<'_> {
                     let home_x = x == x0 || b.min.x as i64 >= x_start;
                     let home_y = y == y0 || b.min.y as i64 >= y_start;
                     if home_x && home_y {
-                        stats.candidates += 1;
+                        stats.candidates = stats.candidates.wrapping_add(1);
                         f(id, b);
                     }
                 }

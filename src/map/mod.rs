@@ -207,7 +207,7 @@ pub struct Hit {
     pub point: Point,
 }
 
-/// Counts of one query's work, for reports and benchmarks.
+/// Counts of one query's work, for reports and benchmarks (modulo 2³²).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct QueryStats {

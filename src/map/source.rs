@@ -107,7 +107,8 @@ pub(super) fn seams_of<M: MapSource + ?Sized>(m: &M, id: u16) -> Result<u32, Map
 /// Bit `i` for each edge of `a` that lies on an edge of `b` running the other way.
 fn covered_edges(a: Convex<'_>, b: Convex<'_>) -> u32 {
     let mut mask = 0u32;
-    for ea in 0..a.edge_count() {
+    // At most 32 edges (`Convex::new`): the `min` keeps the shift in range.
+    for ea in 0..a.edge_count().min(32) {
         let (u, v) = a.edge(ea);
         for eb in 0..b.edge_count() {
             let (p, q) = b.edge(eb);

@@ -180,7 +180,8 @@ impl From<CollectError> for PredictError {
     }
 }
 
-/// Counts of one prediction's work.
+/// Counts of one prediction's work. Diagnostics counted modulo 2³² (one
+/// prediction stays far below; sums over many rings wrap rather than trap).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct PredictStats {
@@ -202,14 +203,14 @@ pub struct PredictStats {
 }
 
 impl core::ops::AddAssign for PredictStats {
-    /// Sums the counts (for a ring, or many rings).
+    /// Sums the counts (for a ring, or many rings), modulo 2³².
     fn add_assign(&mut self, o: PredictStats) {
         self.collect += o.collect;
-        self.beacons += o.beacons;
-        self.edges += o.edges;
-        self.kappa_evals += o.kappa_evals;
-        self.kappa_bounded += o.kappa_bounded;
-        self.occlusion_tests += o.occlusion_tests;
+        self.beacons = self.beacons.wrapping_add(o.beacons);
+        self.edges = self.edges.wrapping_add(o.edges);
+        self.kappa_evals = self.kappa_evals.wrapping_add(o.kappa_evals);
+        self.kappa_bounded = self.kappa_bounded.wrapping_add(o.kappa_bounded);
+        self.occlusion_tests = self.occlusion_tests.wrapping_add(o.occlusion_tests);
     }
 }
 
@@ -269,6 +270,12 @@ pub fn predict<M: MapSource + ?Sized, K: Credence + ?Sized>(
     // which must make the panic-never link fail.
     #[cfg(echoloc_plant_panic)]
     let _ = keys[core::hint::black_box(0)];
+    // `scripts/panic-never.sh --plant-overflow` only: a sum no bound covers,
+    // which the overflow count must find.
+    #[cfg(echoloc_plant_overflow)]
+    {
+        stats.collect.cells = core::hint::black_box(stats.collect.cells) + core::hint::black_box(1);
+    }
     let mut best: Option<(f32, Prediction)> = None;
     // 0.01° above δ_max: the walk's δ (f32, rounded to millidegrees) is
     // within 0.001° of the true angle, this test's within 10⁻⁴°.
@@ -285,7 +292,7 @@ pub fn predict<M: MapSource + ?Sized, K: Credence + ?Sized>(
         if params.strategy != Strategy::Exact && !is_beacon(window, params.strategy, &piece, &mut stats.collect) {
             continue;
         }
-        stats.beacons += 1;
+        stats.beacons = stats.beacons.wrapping_add(1);
         // The exact strategy's candidates are every piece in the window's box
         // within R_max: they serve as the occlusion test's candidates too.
         let occluders = (params.strategy == Strategy::Exact).then_some((&keys[..], area, scale));
@@ -532,7 +539,7 @@ fn search_piece<M: MapSource + ?Sized, K: Credence + ?Sized>(
             continue; // every point of it fails the δ test: no exact clipping
         }
         let Some((lo, hi)) = sector.edge_window(a, b) else { continue };
-        stats.edges += 1;
+        stats.edges = stats.edges.wrapping_add(1);
         let ctx = EdgeCtx { o, a, b, axis, piece: piece.id, obstacle: piece.obstacle, edge, occluders };
         search_edge(map, &ctx, lo, hi, sector.r_min_mm, sector.r_max_mm, params, credence, best, stats);
     }
@@ -702,10 +709,10 @@ fn search_edge<M: MapSource + ?Sized, K: Credence + ?Sized>(
                 // Where κ provably cannot reach τ the net need not run: the
                 // candidate is passed over either way.
                 let kappa = if credence.may_reach(&echo, params.tau_kappa) {
-                    stats.kappa_evals += 1;
+                    stats.kappa_evals = stats.kappa_evals.wrapping_add(1);
                     credence.kappa(&echo)
                 } else {
-                    stats.kappa_bounded += 1;
+                    stats.kappa_bounded = stats.kappa_bounded.wrapping_add(1);
                     Kappa::ZERO
                 };
                 if kappa >= params.tau_kappa && !occluded(map, ctx, v, range, stats) {
@@ -716,7 +723,11 @@ fn search_edge<M: MapSource + ?Sized, K: Credence + ?Sized>(
                     } else {
                         Case::III
                     };
-                    let point = Point::new(ctx.o.x + libm::roundf(v.0) as i32, ctx.o.y + libm::roundf(v.1) as i32);
+                    // (Within R_max of an in-range apex: saturating is exact there.)
+                    let point = Point::new(
+                        ctx.o.x.saturating_add(libm::roundf(v.0) as i32),
+                        ctx.o.y.saturating_add(libm::roundf(v.1) as i32),
+                    );
                     let tol = (params.tolerance_mm as u64
                         + echo.range_mm as u64 * params.tolerance_permille as u64 / 1000)
                         .min(u32::MAX as u64) as u32;
@@ -767,9 +778,12 @@ fn occluded<M: MapSource + ?Sized>(
     range: f32,
     stats: &mut PredictStats,
 ) -> bool {
-    stats.occlusion_tests += 1;
+    stats.occlusion_tests = stats.occlusion_tests.wrapping_add(1);
     let k = fmax((range - 1.0) / range, 0.0);
-    let end = Point::new(ctx.o.x + libm::roundf(v.0 * k) as i32, ctx.o.y + libm::roundf(v.1 * k) as i32);
+    let end = Point::new(
+        ctx.o.x.saturating_add(libm::roundf(v.0 * k) as i32),
+        ctx.o.y.saturating_add(libm::roundf(v.1 * k) as i32),
+    );
     let seg = Segment::new(ctx.o, end);
     let reach = seg.bbox();
     if let Some((keys, _, scale)) =

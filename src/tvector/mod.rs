@@ -96,12 +96,13 @@ impl Convex<'_> {
         let v = self.vertices();
         let n = v.len();
         let mut bits = 0u32;
-        for i in 0..n {
+        // The last edge first, each bit shifted up past the earlier ones:
+        // edge `i` ends at bit `i` (at most 32 edges, `Convex::new`), and no
+        // shift is by more than one place, so none can overflow.
+        for i in (0..n).rev() {
             let cur = v[i];
             let next = if i + 1 < n { v[i + 1] } else { v[0] };
-            if cross(next.sub(cur), p.sub(cur)) < 0 {
-                bits |= 1 << i;
-            }
+            bits = bits << 1 | u32::from(cross(next.sub(cur), p.sub(cur)) < 0);
         }
         if n == 2 {
             let (a, b) = (v[0], v[1]);
@@ -120,8 +121,10 @@ impl Convex<'_> {
     /// bit `i` for edge `i`. Wall caps are not surfaces and are masked off.
     #[inline]
     pub fn front_surfaces(&self, t: TVector) -> u32 {
-        let n = self.edge_count();
-        t.bits() & ((1u32 << n) - 1)
+        // One bit per edge, all 32 of them for a full buffered piece
+        // (`1 << 32` would overflow: the mask is built from the top).
+        let n = self.edge_count().min(32) as u32;
+        t.bits() & u32::MAX.checked_shr(32 - n).unwrap_or(0)
     }
 
     /// Exact decision for the closed segment `ab` against the closed piece,

@@ -43,7 +43,7 @@ impl core::fmt::Display for CollectError {
     }
 }
 
-/// Counts of one collection's work.
+/// Counts of one collection's work, modulo 2³² (as [`crate::predict::PredictStats`]).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct CollectStats {
@@ -58,12 +58,12 @@ pub struct CollectStats {
 }
 
 impl core::ops::AddAssign for CollectStats {
-    /// Sums the counts.
+    /// Sums the counts, modulo 2³².
     fn add_assign(&mut self, o: CollectStats) {
-        self.cells += o.cells;
-        self.candidates += o.candidates;
-        self.path_tests += o.path_tests;
-        self.sector_tests += o.sector_tests;
+        self.cells = self.cells.wrapping_add(o.cells);
+        self.candidates = self.candidates.wrapping_add(o.candidates);
+        self.path_tests = self.path_tests.wrapping_add(o.path_tests);
+        self.sector_tests = self.sector_tests.wrapping_add(o.sector_tests);
     }
 }
 
@@ -151,7 +151,7 @@ pub fn is_beacon(window: &Window, strategy: Strategy, p: &Piece<'_>, stats: &mut
             let shape = p.buffered;
             let to = shape.tvector(o);
             for g in window.paths() {
-                stats.path_tests += 1;
+                stats.path_tests = stats.path_tests.wrapping_add(1);
                 if shape.hits_segment_with(o, to, g, shape.tvector(g)) {
                     return true;
                 }
@@ -159,7 +159,7 @@ pub fn is_beacon(window: &Window, strategy: Strategy, p: &Piece<'_>, stats: &mut
             false
         }
         Strategy::Exact => {
-            stats.sector_tests += 1;
+            stats.sector_tests = stats.sector_tests.wrapping_add(1);
             window.sector.meets(p.shape)
         }
     }

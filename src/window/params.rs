@@ -64,7 +64,8 @@ impl PathLayout {
     /// `R tan θ_o − (k+1)·w` (interior paths). Every end point lies at
     /// `y = R_max`.
     pub fn endpoint_x(&self, k: u32) -> f32 {
-        let n = if self.buffered { (k + 1) as f32 } else { k as f32 };
+        // (Saturating is exact: `u32::MAX as f32` rounds to 2³² = `u32::MAX + 1`.)
+        let n = if self.buffered { k.saturating_add(1) as f32 } else { k as f32 };
         self.half_span_mm - n * self.w_mm
     }
 }
@@ -159,7 +160,7 @@ impl WindowParams {
         let w_min = self.w_min_mm();
         let q = libm::ceilf(span / w_min) as i64;
         // A buffered window with ⌈…⌉ = 1 would get no path: keep one, the axis.
-        let n = (q + self.i_b() as i64).max(1);
+        let n = q.saturating_add(self.i_b() as i64).max(1);
         if n > MAX_PSEUDO_PATHS as i64 {
             return Err(WindowError::TooManyPseudoPaths(n.min(u32::MAX as i64) as u32));
         }

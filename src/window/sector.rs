@@ -114,8 +114,9 @@ impl Sector {
     /// Exact: whether `p` lies in the closed annular sector.
     pub fn contains(&self, p: Point) -> bool {
         let v = p.sub(self.apex);
-        let d2 = dot(v, v);
-        let (rmin, rmax) = (self.r_min_mm as i64, self.r_max_mm as i64);
+        // Non-negative for an in-range point; squares of `u32` fit `u64`.
+        let d2 = dot(v, v) as u64;
+        let (rmin, rmax) = (u64::from(self.r_min_mm), u64::from(self.r_max_mm));
         self.in_wedge(v) && d2 >= rmin * rmin && d2 <= rmax * rmax
     }
 
@@ -125,7 +126,12 @@ impl Sector {
         let mut b = Rect::around(self.apex);
         let at = |a: f32| {
             let (s, c) = sin_cos(a);
-            Point::new(self.apex.x + libm::roundf(c * r) as i32, self.apex.y + libm::roundf(s * r) as i32)
+            // `new` keeps the apex R_max + 2 inside ±COORD_MAX: exact there
+            // (saturating only for fields changed afterwards).
+            Point::new(
+                self.apex.x.saturating_add(libm::roundf(c * r) as i32),
+                self.apex.y.saturating_add(libm::roundf(s * r) as i32),
+            )
         };
         let (lo, hi) = (self.heading_rad - self.half_angle_rad, self.heading_rad + self.half_angle_rad);
         b = b.union_point(at(lo)).union_point(at(hi));
@@ -138,7 +144,10 @@ impl Sector {
             k += 1.0;
             n += 1;
         }
-        Rect { min: Point::new(b.min.x - 1, b.min.y - 1), max: Point::new(b.max.x + 1, b.max.y + 1) }
+        Rect {
+            min: Point::new(b.min.x.saturating_sub(1), b.min.y.saturating_sub(1)),
+            max: Point::new(b.max.x.saturating_add(1), b.max.y.saturating_add(1)),
+        }
     }
 
     /// The map point at sensor-frame coordinates `(x lateral, y along the
@@ -151,9 +160,10 @@ impl Sector {
         if !(dx.abs() <= 4.0e9 && dy.abs() <= 4.0e9) {
             return None;
         }
-        let (px, py) = (self.apex.x as i64 + dx as i64, self.apex.y as i64 + dy as i64);
-        let lim = crate::geometry::COORD_MAX as i64;
-        (px.abs() <= lim && py.abs() <= lim).then(|| Point::new(px as i32, py as i32))
+        let px = i64::from(self.apex.x).checked_add(dx as i64)?;
+        let py = i64::from(self.apex.y).checked_add(dy as i64)?;
+        let lim = crate::geometry::COORD_MAX as u64;
+        (px.unsigned_abs() <= lim && py.unsigned_abs() <= lim).then(|| Point::new(px as i32, py as i32))
     }
 
     /// The unit vector of the axis (map frame).
@@ -227,7 +237,9 @@ impl Sector {
                 (Some(l), Some(rh)) => l <= rh,
                 (None, Some(_)) => false,
                 (Some(_), None) => true,
-                (None, None) => (cr as u128) * (cr as u128) <= (r2 as u128) * (ee as u128),
+                // `ee` is a non-negative i64 here: through u64, so the
+                // compiler sees both products of 64-bit values.
+                (None, None) => (cr as u128) * (cr as u128) <= (r2 as u128) * (ee as u64 as u128),
             };
         };
         self.cmp_dist(a, e, s, r).is_le()

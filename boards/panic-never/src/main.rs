@@ -108,6 +108,7 @@ impl embedded_io::Write for Port {
 fn main() -> ! {
     let input = partition(INPUT_AT, INPUT_LEN);
     let net = CredenceNet::shipped();
+    // What the paths found, kept from the optimiser: a checksum, so it wraps.
     let mut found = 0u32;
     let map_bytes = claimed(partition(MAP_AT, MAP_LEN), 0);
     if let Ok(map) = MapView::new(map_bytes) {
@@ -117,12 +118,12 @@ fn main() -> ! {
             let params = PredictParams { strategy, ..PredictParams::new(window) };
             let mut out = [None; 16];
             if predict_ring(&map, &pose, &PIONEER16, &params, &net, &mut out).is_ok() {
-                found += out.iter().flatten().count() as u32;
+                found = found.wrapping_add(out.iter().flatten().fold(0u32, |n, _| n.wrapping_add(1)));
             }
         }
         let apex = echoloc::geometry::Point::new(pose.x_mm as i32, pose.y_mm as i32);
         if let Ok(w) = Window::place(&window, apex, pose.heading_rad) {
-            found += u32::from(matches!(nearest_in_window(&map, &w), Ok(Some(_))));
+            found = found.wrapping_add(u32::from(matches!(nearest_in_window(&map, &w), Ok(Some(_)))));
         }
         // The whole loop over a scenario, through the ring driver.
         let params = PredictParams::new(window);
@@ -150,7 +151,7 @@ fn main() -> ! {
                         scenario_odometry,
                         |_, _, _, _| {},
                     ) {
-                        found += summary.accepted;
+                        found = found.wrapping_add(summary.accepted);
                     }
                 }
             }
@@ -160,7 +161,7 @@ fn main() -> ! {
     let mut decoder: Decoder<256> = Decoder::new();
     for &b in input.get(12..).unwrap_or(&[]) {
         if let Some(Ok(ToController::Odometry { .. })) = decoder.push::<ToController>(b) {
-            found += 1;
+            found = found.wrapping_add(1);
         }
     }
     let status = FromController::Status { rx: decoder.counts(), odometry_refused: 0, readings: found, stale: 0 };
@@ -181,11 +182,11 @@ fn main() -> ! {
                     let t = time_us.wrapping_sub(black_box(500));
                     if let Ok(u) = sync.increment_to(t) {
                         threshold.predict(&u);
-                        found += u32::from(threshold.update(f32_at(input, 8), 0.9, mount, &target));
+                        found = found.wrapping_add(u32::from(threshold.update(f32_at(input, 8), 0.9, mount, &target)));
                     }
                 }
             }
-            Ok(Some(_)) => found += 1,
+            Ok(Some(_)) => found = found.wrapping_add(1),
             Ok(None) | Err(_) => break,
         }
     }
