@@ -12,11 +12,10 @@ have_components=$(rustup component list --installed)
 for c in llvm-tools rustfmt clippy; do
   grep -q "^$c" <<<"$have_components" || rustup component add "$c"
 done
+source "$(dirname "$0")/apt-get-wait.sh"
 if ! command -v qemu-system-arm >/dev/null 2>&1; then
-  sudo_=""
-  [ "$(id -u)" -eq 0 ] || sudo_="sudo"
-  $sudo_ apt-get update -qq
-  DEBIAN_FRONTEND=noninteractive $sudo_ apt-get install -y -qq qemu-system-arm >/dev/null
+  apt_get update -qq
+  apt_get install -y -qq qemu-system-arm >/dev/null
 fi
 # The independent writer and reader of ROS 2 bags and MCAP recordings the lab's
 # tests run (scripts/fixture-bag.py, scripts/mcap-check.py): PyPI's rosbags

@@ -36,10 +36,14 @@ for t in "${thumbs[@]}"; do
   cargo build -q -p echoloc --target "$t" --release --features async
 done
 
-step "no panic path in the core (issue #14): the panic-never board links; with a planted panic it must not; no overflow check left where hostile bytes arrive"
+step "no panic path in the core (issue #14): the panic-never board links; with a planted panic it must not; no overflow check left anywhere in the core paths (issue #30), and a planted one is found"
 bash scripts/panic-never.sh
 bash scripts/panic-never.sh --plant
 bash scripts/panic-never.sh --overflow
+bash scripts/panic-never.sh --overflow --plant
+
+step "the setup waits for another package manager's lock (issue #30)"
+bash scripts/apt-lock-check.sh
 
 step "boards build"
 cargo build -q -p qemu-mps2-an386 --target thumbv7em-none-eabihf --release

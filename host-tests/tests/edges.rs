@@ -41,7 +41,7 @@ fn front_oracle(v: &[Point], p: Point) -> u64 {
 #[test]
 fn front_surfaces_at_every_vertex_count_up_to_the_buffered_maximum() {
     assert_eq!(MAX_BUFFERED_VERTICES, 32);
-    for n in 3..=MAX_BUFFERED_VERTICES {
+    for n in 2..=MAX_BUFFERED_VERTICES {
         let v = regular(n, 1.0e6, (0, 0));
         let piece = Convex::new(&v).unwrap_or_else(|e| panic!("{n}-gon: {e:?}"));
         // Points all round it, near and far: each edge's bit exactly as the oracle.
