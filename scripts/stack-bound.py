@@ -35,7 +35,8 @@ can preempt; a fault inside a fault handler locks the core up).
 Usage:
   stack-bound.py ELF --root LABEL=SYMBOL [...] [--measured LABEL=BYTES ...]
                  [--snapshot FILE --board NAME [--update]] [--top N]
-                 [--stack-sizes ELF_WITH_STACK_SIZES]
+                 [--reentry-guarded SYMBOL] [--expect-flipped] [--stack-sizes]
+                 [--graph SYMBOL] [--path-to SYMBOL]
 
 SYMBOL matches a function whose demangled name (without its `::h…` hash)
 ends with it, e.g. `qemu_mps2_an386::ring_cycle`; it must match exactly one.
@@ -43,9 +44,13 @@ ends with it, e.g. `qemu_mps2_an386::ring_cycle`; it must match exactly one.
 caller's stack pointer): the bound must be at least that, or the analysis
 missed something (exit 1). `--snapshot` compares each bound with the
 committed one for `--board` (exit 1 if it grew); `--update` rewrites them.
-`--stack-sizes` cross-checks the prologue parse against LLVM's own frame
-sizes (`-Z emit-stack-sizes` on nightly, read by `llvm-readobj --stack-sizes`)
-for the functions both builds have by name.
+`--stack-sizes` cross-checks the parsed frames against LLVM's own frame
+sizes in the same image (built by nightly with `-Z emit-stack-sizes`, read
+by `llvm-readobj --stack-sizes`): a parsed frame below LLVM's fails.
+`--reentry-guarded SYMBOL`: see `bound`. `--expect-flipped`: fail unless the
+initial stack pointer lies at or below `.data`/`.bss`/`.uninit` (flip-link).
+`--graph SYMBOL` prints the call tree under a function with frames and
+bounds; `--path-to SYMBOL` a shortest call chain from each root to it.
 """
 
 import argparse
@@ -99,7 +104,18 @@ class Elf:
 
 
 def strip_hash(name):
-    return re.sub(r"::h[0-9a-f]{16}$", "", name)
+    """The demangled name without its legacy hash (`::h…`) or, in v0
+    mangling, its trailing generic arguments (`::<…>`)."""
+    name = re.sub(r"::h[0-9a-f]{16}$", "", name)
+    if name.endswith(">") and "::<" in name:
+        depth = 0
+        for i in range(len(name) - 1, -1, -1):
+            depth += {">": 1, "<": -1}.get(name[i], 0)
+            if depth == 0:
+                if name[i - 2: i] == "::":
+                    name = name[: i - 2]
+                break
+    return name
 
 
 class Func:
@@ -110,6 +126,9 @@ class Func:
         self.calls = set()  # callee addresses
         self.indirect = []  # (insn address, text) unresolved
         self.resolved = []  # (insn address, target)
+        self.pending = []  # indirect calls not resolved locally: (address, text, register)
+        self.insns = []  # (address, mnemonic, operands, literal word or None)
+        self.computed_jump = False
 
     @property
     def name(self):
@@ -143,7 +162,7 @@ def parse(elf_path):
             addr, size = int(parts[0], 16) & ~1, int(parts[1], 16)
             starts[addr].append(parts[3])
             sizes[addr] = max(sizes.get(addr, 0), size)
-    funcs = {a: Func(a, sizes[a], sorted(set(n), key=lambda s: (s.startswith("_"), len(s)))) for a, n in starts.items()}
+    funcs = {a: Func(a, sizes[a], sorted(set(n), key=lambda s: (not ("Handler" in s or "::" in s or s[:1].islower()), s.startswith("_"), len(s)))) for a, n in starts.items()}
     order = sorted(funcs)
     # Function extents: the symbol's size, or up to the next symbol when it has none.
     ends = {}
@@ -175,7 +194,7 @@ def parse(elf_path):
         if fa != cur:
             cur, window = fa, []
         f = funcs[fa]
-        window = (window + [(mn, ops)])[-12:]
+        window = (window + [(mn, ops)])[-48:]
         base = mn.split(".")[0]
         # --- stack pointer adjustments
         dest_sp = re.match(r"sp\b", ops) is not None
@@ -214,12 +233,7 @@ def parse(elf_path):
             else:
                 f.calls.add(o)
         elif base in ("blx", "bx") and re.fullmatch(r"r\d+|r1[0-2]|ip|sb|sl|fp", ops):
-            val = const_in(window[:-1], ops)
-            if val is not None and owner(val & ~1) == (val & ~1):
-                f.calls.add(val & ~1)
-                f.resolved.append((addr, val & ~1))
-            else:
-                f.indirect.append((addr, f"{mn} {ops}"))
+            f.pending.append((addr, f"{mn} {ops}", ops))
         elif (base == "b" or re.match(r"b(eq|ne|cs|hs|cc|lo|mi|pl|vs|vc|hi|ls|ge|lt|gt|le|al)$", base) or base in ("cbz", "cbnz")) and target:
             t = int(target.group(1), 16)
             if not (fa <= t < ends[fa]):
@@ -228,21 +242,176 @@ def parse(elf_path):
                     f.indirect.append((addr, f"{mn} {ops} (outside every function)"))
                 else:
                     f.calls.add(o)
+        elif base == "mov" and ops.startswith("pc") and jump_table(window[:-1], ops.split(",")[-1].strip()):
+            f.computed_jump = True  # a table of branches inside this function (`adr rN, table; add rN, rN, rI, lsl #2; mov pc, rN`)
+        elif base in ("tbb", "tbh"):
+            f.computed_jump = True  # a table of offsets inside this function
+        elif base == "ldr" and re.fullmatch(r"pc, \[sp\], #(0x[0-9a-f]+|\d+)", ops):
+            pass  # a return (pop of the saved lr into pc)
         elif (base in ("mov", "ldr") and ops.startswith("pc")) or (base in ("ldm", "ldmia") and "pc" in ops and not ops.startswith("sp!")):
             f.indirect.append((addr, f"{mn} {ops}"))
-        # literal-pool loads: remember the constant for const_in
+        lit = None
         if base == "ldr":
-            lit = re.search(r"\[pc, #[^\]]*\]\s*@\s*(0x[0-9a-f]+)", ops)
-            if lit:
-                w = elf.word(int(lit.group(1), 16))
-                reg = ops.split(",")[0].strip()
-                window[-1] = ("=lit", f"{reg}, {w}")
+            m2 = re.search(r"\[pc, #[^\]]*\]\s*@\s*(0x[0-9a-f]+)", ops)
+            if m2:
+                lit = elf.word(int(m2.group(1), 16))
+                window[-1] = ("=lit", f"{ops.split(',')[0].strip()}, {lit}")
+        f.insns.append((addr, mn, ops, lit))
+    for a, f in funcs.items():
+        resolve_pending(f, funcs, owner)
     return funcs, elf
 
 
+TOP = None  # an unknown value
+MAX_VALUES = 8
+BRANCH_COND = r"(eq|ne|cs|hs|cc|lo|mi|pl|vs|vc|hi|ls|ge|lt|gt|le)"
+
+
+def join(a, b):
+    if a is TOP or b is TOP:
+        return TOP
+    u = a | b
+    return u if len(u) <= MAX_VALUES else TOP
+
+
+def transfer(state, insn, conditional):
+    """The register constants after one instruction (AAPCS: a call keeps r4-r11)."""
+    addr, mn, ops, lit = insn
+    base = mn.split(".")[0]
+    parts = [p.strip() for p in ops.split(",")]
+    out = dict(state)
+    writes = {}
+    if base in ("bl", "blx"):
+        for r in ("r0", "r1", "r2", "r3", "r12", "lr"):
+            writes[r] = TOP
+    elif base == "pop" or base.startswith("ldm"):
+        for r in re.findall(r"\b(r\d+|lr)\b", ops.split("{")[-1]):
+            writes[r] = TOP
+    elif parts and re.fullmatch(r"r\d+|lr", parts[0]) and not base.startswith(
+        ("str", "stm", "vstr", "vstm", "cmp", "cmn", "tst", "teq", "push", "b", "cb", "it", "tb")
+    ):
+        r = parts[0]
+        if lit is not None:
+            writes[r] = {lit}
+        elif re.fullmatch(r"(movw|movs?)", base) and len(parts) == 2 and parts[1].startswith("#"):
+            writes[r] = {int(parts[1].lstrip("#"), 0) & 0xFFFFFFFF}
+        elif base == "movt":
+            v = state.get(r, TOP)
+            hi = int(parts[1].lstrip("#"), 0)
+            writes[r] = TOP if v is TOP else {(x & 0xFFFF) | (hi << 16) for x in v}
+        elif re.fullmatch(r"movs?", base) and len(parts) == 2 and re.fullmatch(r"r\d+|lr", parts[1]):
+            writes[r] = state.get(parts[1], TOP)
+        elif re.fullmatch(r"mov" + BRANCH_COND, base) and len(parts) == 2:
+            # a conditional move: the old value may stay
+            conditional = True
+            writes[r] = {int(parts[1].lstrip("#"), 0) & 0xFFFFFFFF} if parts[1].startswith("#") else state.get(parts[1], TOP)
+        else:
+            writes[r] = TOP
+        # instructions with a second destination
+        if base in ("ldrd", "ldrexd", "umull", "smull", "umlal", "smlal", "vmov") and len(parts) > 1:
+            if re.fullmatch(r"r\d+|lr", parts[1]):
+                writes[parts[1]] = TOP
+    # base registers written back (`[rX, #n]!`, `[rX], #n`, `ldm rX!`, `stm rX!`)
+    for r in re.findall(r"\[(r\d+|lr)[^\]]*\]!", ops) + re.findall(r"\[(r\d+|lr)\], ", ops) + re.findall(r"^(r\d+|lr)!", ops):
+        writes[r] = TOP
+    if base.startswith("strex") and parts:
+        writes[parts[0]] = TOP
+    for r, v in writes.items():
+        out[r] = join(state.get(r, TOP), v) if conditional else v
+    return out
+
+
+def register_values(f):
+    """For each instruction of `f`, the constants each register may hold
+    before it: a forward data-flow over the function's own control flow
+    (branches inside the function, fall-through, `it` blocks as maybe-taken
+    writes). A table jump (`tbb`, `tbh`, a branch table) may land anywhere:
+    its state flows into every instruction."""
+    insns = f.insns
+    index = {a: i for i, (a, _, _, _) in enumerate(insns)}
+    succ = []
+    cond_flags = []
+    it_left = 0
+    anywhere = set()
+    for i, (addr, mn, ops, lit) in enumerate(insns):
+        base = mn.split(".")[0]
+        cond_flags.append(it_left > 0)
+        if it_left:
+            it_left -= 1
+        if re.fullmatch(r"it[te]{0,3}", base):
+            it_left = len(base) - 1
+        nxt = [i + 1] if i + 1 < len(insns) else []
+        tgt = re.match(r"(0x[0-9a-f]+)\b", ops.split(",")[-1].strip())
+        t = int(tgt.group(1), 16) if tgt else None
+        if base == "b" and t is not None and not cond_flags[-1]:
+            s = [index[t]] if t in index else []
+        elif (re.fullmatch(r"b" + BRANCH_COND, base) or base in ("cbz", "cbnz") or base == "b") and t is not None:
+            s = nxt + ([index[t]] if t in index else [])
+        elif (base == "bx" and ops == "lr") or (base == "pop" and "pc" in ops) or (base == "ldr" and ops.startswith("pc")):
+            s = nxt if cond_flags[-1] else []
+        elif base in ("tbb", "tbh") or (base == "mov" and ops.startswith("pc")):
+            s = []
+            anywhere.add(i)
+        elif base == "bx":
+            s = nxt if cond_flags[-1] else []
+        else:
+            s = nxt
+        succ.append(s)
+    before = [None] * len(insns)  # None: not reached
+    if insns:
+        before[0] = {}
+    work = [0] if insns else []
+    while work:
+        i = work.pop()
+        after = transfer(before[i], insns[i], cond_flags[i])
+        after = {r: v for r, v in after.items() if v is not TOP}
+        targets = succ[i] + (list(range(len(insns))) if i in anywhere else [])
+        for j in targets:
+            if before[j] is None:
+                before[j] = dict(after)
+                work.append(j)
+            else:
+                merged = {r: join(before[j].get(r, TOP), after.get(r, TOP)) for r in set(before[j]) | set(after)}
+                merged = {r: v for r, v in merged.items() if v is not TOP}
+                if merged != before[j]:
+                    before[j] = merged
+                    work.append(j)
+    return index, before
+
+
+def resolve_pending(f, funcs, owner):
+    """Indirect calls (`blx rN`, `bx rN`) whose register can only hold
+    constants at the call (by `register_values`) that are functions'
+    addresses: calls to each of them. The rest stay unresolved."""
+    if not f.pending:
+        return
+    index, before = register_values(f)
+    for addr, text, reg in f.pending:
+        st = before[index[addr]]
+        vals = None if st is None else st.get(reg, TOP)
+        if vals and all(owner(v & ~1) == (v & ~1) for v in vals):
+            for v in vals:
+                f.calls.add(v & ~1)
+                f.resolved.append((addr, v & ~1))
+        else:
+            f.indirect.append((addr, text))
+
+
+def jump_table(window, reg):
+    """`reg` = `adr` of a table (pc-relative, so inside this function) plus a scaled index: a branch table."""
+    for mn, ops in reversed(window):
+        parts = [p.strip() for p in ops.split(",")]
+        if not parts or parts[0] != reg:
+            continue
+        if mn.startswith("add") and len(parts) >= 3 and parts[1] == reg and "lsl" in ops:
+            continue
+        return mn.startswith("adr")
+    return False
+
+
 def const_in(window, reg):
-    """The constant `reg` holds after `window` (a few instructions, oldest first), if it is one."""
-    lo = hi = None
+    """The constant `reg` holds after `window` (a few instructions just before, oldest first), if it is one."""
+    hi = None
     for mn, ops in reversed(window):
         parts = [p.strip() for p in ops.split(",")]
         if not parts or parts[0] != reg:
@@ -254,22 +423,33 @@ def const_in(window, reg):
             continue
         if mn.startswith(("movw", "mov")) and parts[1].startswith("#"):
             lo = int(parts[1].lstrip("#"), 0)
-            return ((hi or 0) << 16) | lo if hi is not None else lo
+            return ((hi or 0) << 16) | lo
         return None  # written by something else
     return None
 
 
-def bound(funcs, root):
-    """(bytes, reasons, path): the deepest path from `root`; reasons is empty when it is a bound."""
+def bound(funcs, root, guarded=frozenset()):
+    """(bytes, reasons, path): the deepest path from `root`; reasons is empty when it is a bound.
+
+    A function in `guarded` (`--reentry-guarded`) may be re-entered once
+    while it runs (its code stops a second entry at once, e.g. a panic
+    handler's flag): the cycle is followed a second time in full, an upper
+    bound of that second entry, and cut at the third. Any other cycle is
+    recursion, reported unbounded."""
     memo = {}
-    onstack = set()
+    stack = []
 
     def go(a):
-        if a in memo:
-            return memo[a]
-        if a in onstack:
-            return (0, {f"recursion through {funcs[a].name}"}, [])
-        onstack.add(a)
+        depth_g = tuple(stack.count(g) for g in sorted(guarded))
+        if a in guarded and stack.count(a) >= 2:
+            return (0, frozenset(), [])
+        last_g = max([i for i, x in enumerate(stack) if x in guarded], default=-1)
+        if a not in guarded and a in stack[last_g + 1:]:
+            return (0, frozenset({f"recursion through {funcs[a].name}"}), [])
+        key = (a, depth_g)
+        if key in memo:
+            return memo[key]
+        stack.append(a)
         f = funcs[a]
         reasons = set()
         if f.unknown_sp:
@@ -282,9 +462,9 @@ def bound(funcs, root):
             reasons |= r
             if d > best:
                 best, path = d, p
-        onstack.discard(a)
+        stack.pop()
         res = (f.frame + best, frozenset(reasons), [a] + path)
-        memo[a] = res
+        memo[key] = res
         return res
 
     return go(root)
@@ -315,12 +495,18 @@ def main():
     ap.add_argument("--board")
     ap.add_argument("--update", action="store_true")
     ap.add_argument("--top", type=int, default=10)
-    ap.add_argument("--stack-sizes", help="an ELF built with -Z emit-stack-sizes, to cross-check the frames")
+    ap.add_argument("--stack-sizes", action="store_true",
+                    help="cross-check the frames with LLVM's (the image built with nightly's -Z emit-stack-sizes)")
     ap.add_argument("--graph", help="print the calls and frames under this root symbol")
+    ap.add_argument("--reentry-guarded", action="append", default=[],
+                    help="SYMBOL: a function that stops a second entry while it runs (a cycle through it is followed twice)")
+    ap.add_argument("--expect-flipped", action="store_true", help="fail unless the initial SP lies below .data/.bss/.uninit (flip-link)")
+    ap.add_argument("--path-to", help="print a shortest call chain from each root to this symbol")
     args = ap.parse_args()
 
     funcs, elf = parse(args.elf)
     fail = []
+    guarded = frozenset(find(funcs, g) for g in args.reentry_guarded)
 
     # The handlers that can preempt: every vector but the initial SP and Reset.
     vt = elf.vector_table()
@@ -331,7 +517,7 @@ def main():
             handlers[a] = funcs[a]
     worst_h, worst_h_name, h_reasons = 0, "-", set()
     for a, f in handlers.items():
-        d, r, p = bound(funcs, a)
+        d, r, p = bound(funcs, a, guarded)
         if r:
             h_reasons |= {f"handler {f.name}: {x}" for x in r}
         if d > worst_h:
@@ -353,11 +539,12 @@ def main():
     for spec in args.root:
         label, symbol = spec.split("=", 1)
         a = find(funcs, symbol)
-        d, reasons, path = bound(funcs, a)
+        d, reasons, path = bound(funcs, a, guarded)
         total = d + EXC_FRAME + worst_h
         results[label] = (d, reasons, total)
         state = "bound" if not reasons else "NOT BOUNDED (lower estimate)"
-        print(f"root {label} ({funcs[a].name}): {d} bytes [{state}]; with the deepest handler on top: {total}")
+        on_top = f"{total}" if not (reasons or h_reasons) else f"not bounded ({total} without the unbounded paths)"
+        print(f"root {label} ({funcs[a].name}): {d} bytes [{state}]; with the deepest handler on top: {on_top}")
         print("  deepest path: " + " -> ".join(f"{funcs[x].name} [{funcs[x].frame}]" for x in path))
         for r in sorted(reasons):
             print("  why not bounded:", r)
@@ -369,55 +556,87 @@ def main():
             if not ok and not reasons:
                 fail.append(f"{label}: bound {d} < measured {m}")
 
+    if args.expect_flipped:
+        # flip-link: the initial stack pointer (the vector table's first word)
+        # at or below the lowest RAM section, so the stack grows away from them.
+        ram = {n: (addr, len(blob) if typ != 8 else None) for n, (typ, flags, addr, blob) in elf.sections.items()
+               if flags & 2 and addr >= 0x2000_0000 and n in (".data", ".bss", ".uninit")}
+        low = min(a for a, _ in ram.values())
+        sp0 = vt[0]
+        ok = sp0 <= low
+        print(f"\nflip-link: initial SP {sp0:#010x}, lowest static in RAM at {low:#010x} ("
+              + ", ".join(f"{n} {a:#010x}" for n, (a, _) in sorted(ram.items(), key=lambda x: x[1][0])) + "): "
+              + ("the stack lies below the statics" if ok else "NOT flipped: the stack lies above the statics"))
+        if not ok:
+            fail.append("the stack is not below .data/.bss (not linked with flip-link?)")
+
+    if args.path_to:
+        target = find(funcs, args.path_to)
+        for spec in args.root:
+            label, symbol = spec.split("=", 1)
+            a = find(funcs, symbol)
+            prev, todo = {a: None}, [a]
+            while todo and target not in prev:
+                nxt = []
+                for x in todo:
+                    for c in sorted(funcs[x].calls):
+                        if c not in prev:
+                            prev[c] = x
+                            nxt.append(c)
+                todo = nxt
+            chain, x = [], target if target in prev else None
+            while x is not None:
+                chain.append(funcs[x].name)
+                x = prev[x]
+            print(f"\n{label} reaches {funcs[target].name}: " + (" -> ".join(reversed(chain)) if chain else "no"))
+
     if args.graph:
         a = find(funcs, args.graph)
         seen = set()
 
         def show(x, depth):
             f = funcs[x]
-            d, r, _ = bound(funcs, x)
+            d, r, _ = bound(funcs, x, guarded)
             print(f"{'  ' * depth}{f.name} frame {f.frame} bound {d}{' (unbounded)' if r else ''}")
             if x in seen:
                 return
             seen.add(x)
-            for c in sorted(f.calls, key=lambda c: -bound(funcs, c)[0]):
+            for c in sorted(f.calls, key=lambda c: -bound(funcs, c, guarded)[0]):
                 show(c, depth + 1)
 
         print()
         show(a, 0)
 
     if args.stack_sizes:
-        ref = stack_sizes(args.stack_sizes)
-        # Compare by name without the hash (the two builds hash differently).
-        by_name = defaultdict(set)
+        # LLVM's own frame size per function (`-Z emit-stack-sizes`), from this
+        # same image: an oracle for the frames parsed from the instructions.
+        ref = stack_sizes(args.elf)
+        addr_of = {}
         for f in funcs.values():
             for n in f.names:
-                by_name[strip_hash(n)].add(f.frame)
-        ref_by = defaultdict(set)
-        demangled = subprocess.run(["rustfilt"], input="\n".join(ref), capture_output=True, text=True) if False else None
-        cf = subprocess.check_output([tool("llvm-nm"), "-C", "--defined-only", args.stack_sizes], text=True)
-        mangled = subprocess.check_output([tool("llvm-nm"), "--defined-only", args.stack_sizes], text=True)
-        dm = {}
-        for l1, l2 in zip(mangled.splitlines(), cf.splitlines()):
-            dm[l1.split(" ", 2)[-1]] = l2.split(" ", 2)[-1]
-        for n, s in ref.items():
-            ref_by[strip_hash(dm.get(n, n))].add(s)
-        agree = differ = 0
-        diffs = []
-        for n, s in ref_by.items():
-            if n in by_name and len(s) == 1 and len(by_name[n]) == 1:
-                if s == by_name[n]:
-                    agree += 1
-                else:
-                    differ += 1
-                    diffs.append((n, min(s), min(by_name[n])))
-        print(f"\ncross-check with LLVM's stack sizes ({args.stack_sizes}): {agree} functions agree, {differ} differ")
-        for n, s, p in diffs[:20]:
-            print(f"  {n}: LLVM {s}, prologue parse {p}")
-        if differ:
-            under = [d for d in diffs if d[2] < d[1]]
-            if under:
-                fail.append(f"{len(under)} frames below LLVM's own size")
+                addr_of[n] = f.addr
+        mangled = subprocess.check_output([tool("llvm-nm"), "--defined-only", args.elf], text=True)
+        demangled = subprocess.check_output([tool("llvm-nm"), "-C", "--defined-only", args.elf], text=True)
+        dm = {a.split(" ", 2)[-1]: b.split(" ", 2)[-1] for a, b in zip(mangled.splitlines(), demangled.splitlines())}
+        agree, diffs, missing = 0, [], 0
+        for n, size in sorted(ref.items()):
+            a = addr_of.get(dm.get(n, n))
+            if a is None:
+                missing += 1
+                continue
+            if funcs[a].frame == size:
+                agree += 1
+            else:
+                diffs.append((funcs[a].name, size, funcs[a].frame))
+        print(f"\ncross-check with LLVM's stack sizes: {len(ref)} functions have one, {agree} agree with the parse, "
+              f"{len(diffs)} differ, {missing} not found by name")
+        for n, llvm, parsed in diffs:
+            print(f"  {n}: LLVM {llvm}, parsed {parsed} ({'above: conservative' if parsed > llvm else 'BELOW LLVM'})")
+        under = [d for d in diffs if d[2] < d[1]]
+        if under:
+            fail.append(f"{len(under)} parsed frames below LLVM's own size")
+        if not ref:
+            fail.append("no .stack_sizes in the image (built without -Z emit-stack-sizes?)")
 
     if args.snapshot and args.board:
         snap = {}
