@@ -542,6 +542,15 @@ def main():
         for r in sorted(h_reasons):
             print("   ", r)
 
+    resolved = [(f, a, t) for f in funcs.values() for a, t in f.resolved]
+    if resolved:
+        by = defaultdict(set)
+        for f, a, t in resolved:
+            by[(f.name, a)].add(funcs[t].name)
+        print(f"indirect calls resolved by the register data-flow: {len(by)}")
+        for (name, a), ts in sorted(by.items()):
+            print(f"  {name} at {a:#x} -> {', '.join(sorted(ts))}")
+
     print(f"\nlargest frames:")
     for f in sorted(funcs.values(), key=lambda f: -f.frame)[: args.top]:
         print(f"  {f.frame:>7}  {f.name}")

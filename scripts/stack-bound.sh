@@ -15,7 +15,8 @@
 # bounded root became unbounded. `--update` rewrites the snapshot.
 # `--cross-check` also builds the QEMU image with nightly's
 # `-Z emit-stack-sizes` and compares the frames parsed from its instructions
-# with LLVM's own (installs nothing: needs nightly with thumbv7em-none-eabihf).
+# with LLVM's own in that image (fails if a parsed frame is smaller); installs
+# nightly (as scripts/fuzz.sh does) and its thumbv7em-none-eabihf library when absent.
 # Reads the QEMU firmware's output on stdin (as scripts/metrics.sh), or runs it.
 # Usage: cargo run -q -p qemu-mps2-an386 --target thumbv7em-none-eabihf --release | bash scripts/stack-bound.sh [--update] [--cross-check]
 set -euo pipefail
@@ -74,6 +75,8 @@ python3 scripts/stack-bound.py "$dir/stm32f4-sonar" --board stm32f4-sonar --snap
 if [ "$cross" = 1 ]; then
   echo
   echo "== cross-check: the frames parsed from the instructions against LLVM's -Z emit-stack-sizes (nightly, same image)"
+  rustup toolchain list | grep -q '^nightly' || rustup toolchain install nightly --profile minimal
+  rustup +nightly target list --installed | grep -qx $t || rustup +nightly target add $t
   ndir=${CARGO_TARGET_DIR:-target}/nightly-stack-sizes
   CARGO_TARGET_DIR=$ndir RUSTFLAGS="-Z emit-stack-sizes" \
     cargo +nightly build -q -p qemu-mps2-an386 --bin qemu-mps2-an386 --target $t --release

@@ -23,7 +23,9 @@
 //!
 //! The LEDs show, after each ring cycle, whether at least half of its judged
 //! readings confirmed the map (green) and whether it saw an unknown obstacle
-//! (red). `defmt` logs over RTT: `cd boards/stm32f4-sonar && cargo run
+//! (red). The stack, painted at reset and placed below the statics by
+//! flip-link (an overflow faults), has its high-water mark logged after the
+//! setup and every 16 ring cycles. `defmt` logs over RTT: `cd boards/stm32f4-sonar && cargo run
 //! --release` flashes and runs it through `probe-rs` (`.cargo/config.toml`).
 #![no_std]
 #![no_main]
