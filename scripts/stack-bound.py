@@ -416,7 +416,8 @@ def jump_table(window, reg):
         parts = [p.strip() for p in ops.split(",")]
         if not parts or parts[0] != reg:
             continue
-        if mn.startswith("add") and len(parts) >= 3 and parts[1] == reg and "lsl" in ops:
+        if mn.startswith("add") and len(parts) >= 3 and "lsl" in ops:
+            reg = parts[1]  # table base + index << n: follow the base
             continue
         return mn.startswith("adr")
     return False
