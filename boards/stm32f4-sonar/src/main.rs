@@ -23,7 +23,9 @@
 //!
 //! The LEDs show, after each ring cycle, whether at least half of its judged
 //! readings confirmed the map (green) and whether it saw an unknown obstacle
-//! (red). `defmt` logs over RTT: `cd boards/stm32f4-sonar && cargo run
+//! (red). The stack, painted at reset and placed below the statics by
+//! flip-link (an overflow faults), has its high-water mark logged after the
+//! setup and every 16 ring cycles. `defmt` logs over RTT: `cd boards/stm32f4-sonar && cargo run
 //! --release` flashes and runs it through `probe-rs` (`.cargo/config.toml`).
 #![no_std]
 #![no_main]
@@ -40,8 +42,8 @@ use echoloc::predict::PIONEER16;
 use echoloc::referencing::{EkfConfig, Motion};
 use heapless::Deque;
 use stm32f4_sonar::{
-    credence, map_agrees, predict_params, Clock, EchoLevel, HostPort, SonarRing, Tim5Clock, MODULE_TIMING, RING_TIMING,
-    TRANSDUCERS, VERDICTS,
+    credence, map_agrees, predict_params, stack_high_water, Clock, EchoLevel, HostPort, SonarRing, Tim5Clock,
+    MODULE_TIMING, RING_TIMING, STACK_REPORT_CYCLES, TRANSDUCERS, VERDICTS,
 };
 use stm32f4xx_hal::pac;
 use stm32f4xx_hal::prelude::*;
@@ -124,8 +126,10 @@ fn main() -> ! {
         time_us: clock.now_us(),
     };
     if let Err(e) = link.send(&hello) {
-        defmt::warn!("link: {}", defmt::Debug2Format(&e));
+        defmt::warn!("link: {}", e);
     }
+    let (used, size) = stack_high_water();
+    defmt::info!("stack: {=usize} of {=usize} bytes used by the setup (painted at reset)", used, size);
 
     loop {
         // 1. The ring: a stamped edge first, then the schedule.
@@ -188,7 +192,7 @@ fn main() -> ! {
                 let _ = link.send(&status);
             }
             Ok(None) => {}
-            Err(e) => defmt::warn!("link: {}", defmt::Debug2Format(&e)),
+            Err(e) => defmt::warn!("link: {}", e),
         }
 
         // 3. The controller, only while a ping is in flight (its slot's time
@@ -207,7 +211,10 @@ fn main() -> ! {
 }
 
 /// One reading through the controller; its report (and the cycle's, when
-/// it closed one) to the host; the LEDs per cycle.
+/// it closed one) to the host; the LEDs per cycle; the stack's high-water
+/// mark every [`STACK_REPORT_CYCLES`] cycles. Never inlined: the root of the
+/// ring cycle's static stack bound (`scripts/stack-bound.sh`).
+#[inline(never)]
 fn step<M, K, P, const N: usize>(
     controller: &mut Controller<'_, M, K, N>,
     link: &mut Link<P>,
@@ -227,6 +234,16 @@ fn step<M, K, P, const N: usize>(
                 let _ =
                     if end.verdicts.unknown_obstacle > 0 { obstacle_led.set_high() } else { obstacle_led.set_low() };
                 let _ = link.send(&FromController::Cycle(CycleReport::from(end)));
+                let cycles = controller.counts().cycles;
+                if cycles % STACK_REPORT_CYCLES == 0 {
+                    let (used, size) = stack_high_water();
+                    defmt::info!(
+                        "stack: high-water mark {=usize} of {=usize} bytes after {=u32} ring cycles",
+                        used,
+                        size,
+                        cycles
+                    );
+                }
             }
             let x = controller.state();
             defmt::debug!("t{} {}: pose ({}, {}, {})", r.transducer, s.report.verdict, x[0], x[1], x[2]);
