@@ -12,6 +12,9 @@ have_components=$(rustup component list --installed)
 for c in llvm-tools rustfmt clippy; do
   grep -q "^$c" <<<"$have_components" || rustup component add "$c"
 done
+# flip-link: the STM32 board's linker (the stack below .data/.bss, so an
+# overflow faults instead of corrupting them; scripts/thumb-link.sh, issue #30).
+command -v flip-link >/dev/null 2>&1 || cargo install --locked -q flip-link
 source "$(dirname "$0")/apt-get-wait.sh"
 if ! command -v qemu-system-arm >/dev/null 2>&1; then
   apt_get update -qq

@@ -68,6 +68,10 @@ out=$(cargo run -q -p qemu-mps2-an386 --target thumbv7em-none-eabihf --release 2
 echo "$out"
 # The budgets against the committed snapshot: fails when a figure grew by more than 5 %.
 bash scripts/metrics.sh <<<"$out"
+# Static worst-case stack bounds (issue #30): each at least its painted mark, none grown past
+# boards/stack-bounds.txt, the STM32 stack below its statics (flip-link); the parsed frames
+# against LLVM's -Z emit-stack-sizes (nightly, installed when absent).
+bash scripts/stack-bound.sh --cross-check <<<"$out"
 grep -q "corrupted blob: refused" <<<"$out"
 grep -q "stack high-water mark" <<<"$out"
 grep -q "ring16 PseudoPaths" <<<"$out"
