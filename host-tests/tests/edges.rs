@@ -250,3 +250,121 @@ fn frame_sizes_saturate_beyond_memory() {
     assert_eq!(max_frame_len(usize::MAX), usize::MAX);
     assert_eq!(max_frame_len(usize::MAX - 3), usize::MAX);
 }
+
+/// Extreme values of every numeric type a constructor or function takes.
+const U32S: [u32; 8] = [0, 1, 2, 499, 5_500, 100_000, u32::MAX - 1, u32::MAX];
+const F32S: [f32; 12] =
+    [0.0, -0.0, 1e-30, 0.5, 29.99, 89.999, 90.0, 1e30, -1.0, f32::INFINITY, f32::NEG_INFINITY, f32::NAN];
+
+#[test]
+fn window_params_for_any_fields() {
+    use echoloc::window::{WindowError, WindowParams, MAX_PSEUDO_PATHS};
+    for r_min_mm in U32S {
+        for r_max_mm in U32S {
+            for half_angle_deg in F32S {
+                for delta_max_deg in [0.0, 15.0, 89.9, 90.0, -1.0, f32::NAN] {
+                    for ds_min_mm in [0, 1, 300, u32::MAX] {
+                        for tb_mm in [0, 300, u32::MAX] {
+                            let w =
+                                WindowParams { r_min_mm, r_max_mm, half_angle_deg, delta_max_deg, ds_min_mm, tb_mm };
+                            let valid = r_max_mm > 0
+                                && r_max_mm <= echoloc::window::MAX_RANGE_MM
+                                && r_min_mm < r_max_mm
+                                && half_angle_deg > 0.0
+                                && half_angle_deg < 90.0
+                                && (0.0..90.0).contains(&delta_max_deg)
+                                && ds_min_mm > 0;
+                            assert_eq!(w.validate().is_ok(), valid, "{w:?}");
+                            match w.layout() {
+                                Ok(l) => {
+                                    assert!(valid && l.n_pp >= 1 && l.n_pp as usize <= MAX_PSEUDO_PATHS, "{w:?}");
+                                    for k in [0, l.n_pp - 1, u32::MAX] {
+                                        assert!(!l.endpoint_x(k).is_nan(), "{w:?} k {k}");
+                                    }
+                                }
+                                Err(WindowError::TooManyPseudoPaths(_)) => assert!(valid),
+                                Err(_) => assert!(!valid, "{w:?}"),
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn sectors_at_any_apex_heading_and_range() {
+    use echoloc::window::Sector;
+    let coords = [0, 1, -1, 1 << 20, COORD_MAX - 6_000, COORD_MAX, -COORD_MAX, i32::MAX, i32::MIN];
+    for x in coords {
+        for y in [0, COORD_MAX, i32::MIN] {
+            for heading in F32S {
+                for half in [1e-6f32, 0.26, 1.5, std::f32::consts::FRAC_PI_2, 2.0, f32::NAN] {
+                    for (r_min, r_max) in [(0, 1), (408, 5_500), (0, u32::MAX), (u32::MAX, u32::MAX), (5_499, 5_500)] {
+                        let apex = Point::new(x, y);
+                        // Every argument: a sector or a typed error, never a panic.
+                        let Ok(s) = Sector::new(apex, heading, half, r_min, r_max) else { continue };
+                        // A sector made: its box and its membership tests run, and
+                        // the apex plus R_max stays in range.
+                        let reach = i64::from(r_max) + 2;
+                        assert!(i64::from(x).abs() + reach <= i64::from(COORD_MAX), "{s:?}");
+                        let b = s.bbox();
+                        assert!(b.min.x <= x && x <= b.max.x && b.min.y <= y && y <= b.max.y);
+                        let _ = s.contains(Point::new(x.saturating_add(1_000), y));
+                        let _ = s.to_map(f32::MAX, f32::MIN);
+                    }
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn kappa_for_any_range_and_angle() {
+    use echoloc::credence::net::CredenceNet;
+    let net = CredenceNet::shipped();
+    let mut last = None;
+    for r in U32S.into_iter().chain([500, 2_000, 8_000]) {
+        for t in [i32::MIN, -90_000, -1, 0, 1, 45_000, 90_000, i32::MAX] {
+            let k = net.kappa_at(r, t);
+            // κ is in [0, 1]; the sign of the angle does not matter.
+            assert!(k.to_num::<f32>() >= 0.0 && k.to_num::<f32>() <= 1.0);
+            if t != i32::MIN {
+                assert_eq!(k, net.kappa_at(r, -t), "r {r} θ {t}");
+            }
+            last = Some(k);
+        }
+    }
+    assert!(last.is_some());
+}
+
+#[test]
+fn points_and_predicates_at_the_coordinate_limits() {
+    use echoloc::geometry::{orient, point_on_segment, segments_intersect};
+    let m = COORD_MAX;
+    let corners = [Point::new(-m, -m), Point::new(m, -m), Point::new(m, m), Point::new(-m, m), Point::new(0, 0)];
+    for &a in &corners {
+        for &b in &corners {
+            // dist2 exact against i128 at the limits of the range.
+            let (dx, dy) = (i128::from(a.x) - i128::from(b.x), i128::from(a.y) - i128::from(b.y));
+            assert_eq!(i128::from(a.dist2(b)), dx * dx + dy * dy);
+            for &c in &corners {
+                let o = (i128::from(b.x) - i128::from(a.x)) * (i128::from(c.y) - i128::from(a.y))
+                    - (i128::from(b.y) - i128::from(a.y)) * (i128::from(c.x) - i128::from(a.x));
+                assert_eq!(i128::from(orient(a, b, c)), o);
+                let _ = point_on_segment(a, b, c);
+                for &d in &corners {
+                    let _ = segments_intersect(a, b, c, d);
+                }
+            }
+        }
+    }
+    // Outside the range the predicates answer (they wrap, as documented),
+    // and the constructors that take points refuse them.
+    let far = [Point::new(i32::MIN, i32::MIN), Point::new(i32::MAX, 0)];
+    let _ = far[0].dist2(far[1]);
+    let _ = far[0].dist2(Point::new(0, 0));
+    let _ = orient(far[0], far[1], Point::new(0, 0));
+    assert!(Convex::new(&[far[0], far[1], Point::new(0, 0)]).is_err());
+}

@@ -42,11 +42,12 @@ impl Point {
         (self.x.wrapping_sub(o.x) as i64, self.y.wrapping_sub(o.y) as i64)
     }
 
-    /// Squared Euclidean distance, exact.
+    /// Squared Euclidean distance, exact for in-range points (below 2⁶³);
+    /// beyond the range it wraps, as [`dot`](super::dot) does.
     #[inline]
     pub const fn dist2(self, o: Point) -> i64 {
-        let (dx, dy) = self.sub(o);
-        dx * dx + dy * dy
+        let d = self.sub(o);
+        super::dot(d, d)
     }
 }
 
