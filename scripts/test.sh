@@ -28,6 +28,7 @@ done
 cargo clippy -q -p qemu-mps2-an386 --target thumbv7em-none-eabihf -- -D warnings
 cargo clippy -q -p stm32f4-sonar --target thumbv7em-none-eabihf -- -D warnings
 cargo clippy -q -p panic-never --target thumbv7em-none-eabihf -- -D warnings
+cargo clippy -q -p stack-paint --target thumbv7em-none-eabihf -- -D warnings
 
 step "core builds for the thumb targets"
 for t in "${thumbs[@]}"; do

@@ -46,55 +46,8 @@ pub fn spin(n: u32) {
     }
 }
 
-/// The stack's bounds `(top, bottom)`: cortex-m-rt's `_stack_start` and `_stack_end`.
-pub fn stack_bounds() -> (usize, usize) {
-    extern "C" {
-        static _stack_start: u32;
-        static _stack_end: u32;
-    }
-    // Only the symbols' addresses are taken: no unsafe needed.
-    (core::ptr::addr_of!(_stack_start) as usize, core::ptr::addr_of!(_stack_end) as usize)
-}
-
-/// The first word in `from..to` that no longer holds cortex-m-rt's paint
-/// value (or `to`): the deepest stack use since the words were painted.
-/// Always inlined, so that its own frame does not scrub what it reads.
-#[inline(always)]
-pub fn first_unpainted(from: usize, to: usize) -> usize {
-    let mut p = from;
-    // SAFETY: the words between the bounds are plain RAM, read with volatile reads.
-    while p < to && unsafe { core::ptr::read_volatile(p as *const u32) } == cortex_m_rt::STACK_PAINT_VALUE {
-        p += 4;
-    }
-    p
-}
-
-/// Paints the free stack, from its bottom up to the current stack pointer,
-/// with cortex-m-rt's paint value; returns the stack pointer. Inlined into the
-/// caller, so that no frame of its own lies below the pointer it reads.
-#[inline(always)]
-pub fn paint_free_stack(bottom: usize) -> usize {
-    let sp = cortex_m::register::msp::read() as usize;
-    let mut p = bottom;
-    while p < sp {
-        // SAFETY: the words from the stack's bottom up to the stack pointer
-        // are free (no interrupt is enabled), and nothing below it is live.
-        #[allow(unsafe_code)]
-        unsafe {
-            core::ptr::write_volatile(p as *mut u32, cortex_m_rt::STACK_PAINT_VALUE)
-        };
-        p += 4;
-    }
-    sp
-}
-
-/// Bytes of stack ever used, and the stack's size: cortex-m-rt painted
-/// `_stack_end.._stack_start` with `0xCCCC_CCCC` before `main` (feature
-/// `paint-stack`); the lowest overwritten word marks the deepest use.
-pub fn stack_high_water() -> (usize, usize) {
-    let (top, bottom) = stack_bounds();
-    (top - first_unpainted(bottom, top), top - bottom)
-}
+/// The stack's high-water mark by painting (shared with the STM32 board).
+pub use stack_paint::{first_unpainted, paint_free_stack, stack_bounds, stack_high_water};
 
 /// Times a loop of exactly 20 000 instructions, prints the calibration line
 /// every binary starts with, and returns instructions per SysTick tick.

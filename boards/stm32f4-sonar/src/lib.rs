@@ -297,43 +297,12 @@ pub const fn credence() -> CredenceNet<'static> {
     CredenceNet::shipped()
 }
 
-/// The stack's bounds `(top, bottom)`: cortex-m-rt's `_stack_start` and
-/// `_stack_end`. Linked with flip-link, the stack runs from just below
-/// `.data` down to the start of RAM (`0x2000_0000`).
-pub fn stack_bounds() -> (usize, usize) {
-    extern "C" {
-        static _stack_start: u32;
-        static _stack_end: u32;
-    }
-    // Only the symbols' addresses are taken: no unsafe needed.
-    (core::ptr::addr_of!(_stack_start) as usize, core::ptr::addr_of!(_stack_end) as usize)
-}
-
-/// The first word in `from..to` that no longer holds cortex-m-rt's paint
-/// value (or `to`): the deepest stack use since the words were painted.
-/// Always inlined, so that its own frame does not scrub what it reads.
-#[inline(always)]
-pub fn first_unpainted(from: usize, to: usize) -> usize {
-    let mut p = from;
-    // SAFETY: `from..to` is the stack's range (`stack_bounds`), plain RAM,
-    // word-aligned; the reads are volatile and the words below the stack
-    // pointer belong to no one.
-    #[allow(unsafe_code)]
-    while p < to && unsafe { core::ptr::read_volatile(p as *const u32) } == cortex_m_rt::STACK_PAINT_VALUE {
-        p += 4;
-    }
-    p
-}
-
-/// Bytes of stack ever used since reset, and the stack's size: cortex-m-rt
-/// painted `_stack_end.._stack_start` with its paint value before `main`
-/// (feature `paint-stack`); the lowest overwritten word marks the deepest
-/// use. Reads every word from the bottom up to that mark (about 48 000
-/// reads when little is used: under 1 ms at 168 MHz).
-pub fn stack_high_water() -> (usize, usize) {
-    let (top, bottom) = stack_bounds();
-    (top - first_unpainted(bottom, top), top - bottom)
-}
+/// The stack's high-water mark by painting (shared with the QEMU board):
+/// cortex-m-rt painted the stack at reset (feature `paint-stack`); linked
+/// with flip-link, it runs from just below `.data` down to the start of RAM.
+/// `stack_high_water` reads every word from the bottom up to the mark
+/// (about 48 000 reads when little is used: under 1 ms at 168 MHz).
+pub use stack_paint::{first_unpainted, stack_bounds, stack_high_water};
 
 /// Ring cycles between two reports of the stack's high-water mark.
 pub const STACK_REPORT_CYCLES: u32 = 16;
