@@ -33,10 +33,14 @@ for r in d["maps"]:
     print(f"\n{r['map']}: {r['pieces']} pieces, {r['windows_per_half_angle']} windows per half-angle, grid {r['grid']}")
     for c in r["reference_check"]:
         print(f"  reference vs brute force ({c['half_angle_deg']} deg): {c['agree']}/{c['sampled']} agree, max diff {c['max_diff_mm']} mm")
-    print(f"  {'method':<22}{'half':>6}{'ns/window':>11}{'x echoloc':>11}{'complete':>10}{'bytes':>11}")
+    print(f"  {'method':<26}{'half':>6}{'ns/window':>11}{'x echoloc':>11}{'complete':>10}{'bytes':>11}")
     for m in r["methods"]:
         c = "-" if m["completeness"] is None else f"{100 * m['completeness']:.1f}%"
-        print(f"  {m['name']:<22}{m['half_angle_deg']:>6.0f}{m['ns_per_window']:>11.0f}{m['ratio_to_echoloc']:>11.2f}{c:>10}{m['bytes']:>11}")
+        print(f"  {m['name']:<26}{m['half_angle_deg']:>6.0f}{m['ns_per_window']:>11.0f}{m['ratio_to_echoloc']:>11.2f}{c:>10}{m['bytes']:>11}")
+    for s in r.get("summary", []):
+        f, p, b = s["fastest_peer"], s["parry2d"], s["bresenham_1deg"]
+        print(f"  {s['half_angle_deg']:.0f} deg: full {s['echoloc_full_ns_per_window']:.0f} ns; fastest peer {f['method']} {f['ns_per_window']:.0f} ns ({f['ratio']:.2f}x); "
+              f"{p['method']} {p['ratio']:.2f}x; {b['method']} {b['ratio']:.2f}x")
 PY
 echo
 echo "figure: docs/figures/bench-scaling.png; JSON: $out/bench.json"

@@ -28,9 +28,13 @@ fn depot_bench_reports_every_method_against_a_checked_reference() {
     let methods = v["methods"].as_array().unwrap();
     let names = [
         "bresenham_1deg",
+        "bresenham_1deg_pruned",
         "bresenham_0.25deg",
         "ray_marching_1deg",
+        "ray_marching_1deg_pruned",
         "parry2d_1deg",
+        "parry2d_polyline_1deg",
+        "cddt_1deg",
         "echoloc_exact",
         "echoloc_pseudo_paths",
         "echoloc_full",
@@ -46,7 +50,13 @@ fn depot_bench_reports_every_method_against_a_checked_reference() {
         match name {
             n if n.starts_with("echoloc") => assert_eq!(bytes, blob),
             n if n.starts_with("bresenham") => assert_eq!(bytes, grid),
-            "ray_marching_1deg" => assert_eq!(bytes, 5 * grid, "grid bytes and an f32 distance per cell"),
+            n if n.starts_with("ray_marching") => {
+                assert_eq!(bytes, 5 * grid, "grid bytes and an f32 distance per cell")
+            }
+            "cddt_1deg" => {
+                assert_eq!(bytes, v["cddt"]["bytes"].as_u64().unwrap());
+                assert!(bytes > grid + 4 * v["cddt"]["zero_points"].as_u64().unwrap(), "{m}");
+            }
             _ => assert!(bytes > 0),
         }
         let c = m["completeness"].as_f64();
@@ -62,6 +72,34 @@ fn depot_bench_reports_every_method_against_a_checked_reference() {
         methods.iter().find(|m| m["name"] == n && m["half_angle_deg"] == h).unwrap()["ns_per_window"].as_f64().unwrap()
     };
     assert!(ns("bresenham_0.25deg", 30.0) > ns("bresenham_1deg", 30.0));
+    // The pruned fans answer as the unpruned ones: the same completeness.
+    let complete = |n: &str, h: f64| {
+        methods.iter().find(|m| m["name"] == n && m["half_angle_deg"] == h).unwrap()["completeness"].as_f64().unwrap()
+    };
+    for h in [15.0, 30.0] {
+        assert_eq!(complete("bresenham_1deg", h), complete("bresenham_1deg_pruned", h));
+        assert_eq!(complete("ray_marching_1deg", h), complete("ray_marching_1deg_pruned", h));
+        assert_eq!(complete("parry2d_1deg", h), complete("parry2d_polyline_1deg", h));
+    }
+    assert_eq!(v["cddt"]["theta_discretization"], 108, "range_libc's default");
+    // The summary: the full prediction against the fastest peer, parry2d and the 1° Bresenham fan.
+    let summary = v["summary"].as_array().unwrap();
+    assert_eq!(summary.len(), 2);
+    for s in summary {
+        let h = s["half_angle_deg"].as_f64().unwrap();
+        let full = s["echoloc_full_ns_per_window"].as_f64().unwrap();
+        assert_eq!(full, ns("echoloc_full", h));
+        for (key, prefix) in [("fastest_peer", ""), ("parry2d", "parry2d"), ("bresenham_1deg", "bresenham_1deg")] {
+            let (name, t) = (s[key]["method"].as_str().unwrap(), s[key]["ns_per_window"].as_f64().unwrap());
+            assert!(name.starts_with(prefix) && !name.starts_with("echoloc"), "{s}");
+            let peers = names.iter().filter(|n| n.starts_with(prefix) && !n.starts_with("echoloc"));
+            for n in peers {
+                assert!(t <= ns(n, h), "{key} {name} is not faster than {n}: {s}");
+            }
+            let ratio = s[key]["ratio"].as_f64().unwrap();
+            assert!((ratio - t / full).abs() <= 0.01 * ratio, "{s}");
+        }
+    }
 }
 
 #[test]

@@ -91,6 +91,21 @@ impl Grid {
     /// (cell count along the line × resolution, as amcl computes it), or
     /// `None` if none within `max`.
     pub fn bresenham(&self, o: (f64, f64), dir: (f64, f64), max: f64) -> Option<f64> {
+        self.bresenham_steps(o, dir, max, i64::MAX)
+    }
+
+    /// [`Self::bresenham`]'s line (to `max`: the same cells), walked only
+    /// while its cells are within `limit` (≤ `max`) of the start, by the
+    /// range amcl reports (cells' offsets `(dx, dy)`, `dx² + dy² ≤
+    /// (limit / res)²`; it only grows along the walk). Any hit within
+    /// `limit` is the unpruned answer; `None` means none within `limit`.
+    pub fn bresenham_within(&self, o: (f64, f64), dir: (f64, f64), max: f64, limit: f64) -> Option<f64> {
+        let l = limit / self.res;
+        self.bresenham_steps(o, dir, max, (l * l).floor() as i64)
+    }
+
+    #[inline(always)]
+    fn bresenham_steps(&self, o: (f64, f64), dir: (f64, f64), max: f64, max_d2: i64) -> Option<f64> {
         let (ax, ay) = self.cell_of(o);
         let (bx, by) = self.cell_of((o.0 + dir.0 * max, o.1 + dir.1 * max));
         let steep = (by - ay).abs() > (bx - ax).abs();
@@ -101,6 +116,9 @@ impl Grid {
         let hit = |x: i64, y: i64| if steep { self.occupied(y, x) } else { self.occupied(x, y) };
         let (mut x, mut y, mut error) = (x0, y0, 0);
         loop {
+            if max_d2 != i64::MAX && (x - x0) * (x - x0) + (y - y0) * (y - y0) > max_d2 {
+                return None;
+            }
             if hit(x, y) {
                 let r = ((x - x0) as f64).hypot((y - y0) as f64) * self.res;
                 return (r <= max).then_some(r);

@@ -5,8 +5,12 @@
 //! | method | representation | what it is |
 //! |---|---|---|
 //! | `bresenham_1deg`, `bresenham_0.25deg` | occupancy grid | a fan of rays by Bresenham's line, as ROS amcl's beam model casts each beam ([`grid::Grid::bresenham`]) |
+//! | `bresenham_1deg_pruned` | occupancy grid | the 1° fan, each ray walked only to the fan's best range so far + 1.5 cells: the same answers ([`peers::bresenham_fan_pruned`]) |
 //! | `ray_marching_1deg` | grid + Euclidean distance transform | a fan by ray marching, range_libc's "RM" ([`grid::DistanceMap::march`]) |
+//! | `ray_marching_1deg_pruned` | grid + EDT | the same, each ray marched only to the best range so far + 1.5 cells: the same answers ([`peers::march_fan_pruned`]) |
 //! | `parry2d_1deg` | polygons in a `parry2d` compound (its BVH) | a fan of rays cast by parry2d |
+//! | `parry2d_polyline_1deg` | the surface edges in a `parry2d` `Polyline` (its BVH) | a fan, each ray's max time of impact the best range so far ([`peers::PolylineScene`]) |
+//! | `cddt_1deg` | grid + range_libc's compressed directional distance transform, 108 directions | the 1° fan, each ray snapped to a discrete direction ([`peers::Cddt`]) |
 //! | `echoloc_exact` | compiled map (read in place) | the exact nearest obstacle point in the window: the reference |
 //! | `echoloc_pseudo_paths` | compiled map | the paper's pseudo-paths collect the pieces, then their nearest point |
 //! | `echoloc_full` | compiled map | the full prediction (δ gate, quantised credence net, occlusion), for reference |
@@ -17,10 +21,17 @@
 //! methods), both "nothing in range" counting as found; memory of each
 //! method's own structures. The exact reference is checked first against
 //! an independent brute force over every piece on a sample of windows.
+//!
+//! Per half-angle, `summary` sets the full prediction against the fastest
+//! peer (every method not echoloc's), against parry2d (the faster of its two
+//! setups) and against the 1° Bresenham fan (the faster of pruned and
+//! unpruned): each ratio is the peer's time over the full prediction's
+//! (above 1: echoloc is faster).
 
 pub mod brute;
 mod export;
 pub mod grid;
+pub mod peers;
 mod plot;
 
 use std::path::PathBuf;
@@ -96,7 +107,7 @@ impl Win {
 }
 
 /// Free-space poses: inside the map's bounds, outside every buffered piece.
-fn poses(map: &MapView<'_>, n: usize, seed: u64) -> Vec<Win> {
+pub(crate) fn poses(map: &MapView<'_>, n: usize, seed: u64) -> Vec<Win> {
     let Some(b) = map.bounds() else { return Vec::new() };
     let mut s = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1;
     let mut next = move || {
@@ -124,7 +135,7 @@ fn poses(map: &MapView<'_>, n: usize, seed: u64) -> Vec<Win> {
 }
 
 /// A ray fan: `half` each side of `heading` in `step` (radians), both ends included.
-fn fan(heading: f64, half: f64, step: f64) -> impl Iterator<Item = (f64, f64)> {
+pub(crate) fn fan(heading: f64, half: f64, step: f64) -> impl Iterator<Item = (f64, f64)> {
     let n = (half / step).round() as i64;
     (-n..=n).map(move |k| {
         let a = heading + k as f64 * step;
@@ -132,7 +143,7 @@ fn fan(heading: f64, half: f64, step: f64) -> impl Iterator<Item = (f64, f64)> {
     })
 }
 
-fn min_opt(a: Option<f64>, b: Option<f64>) -> Option<f64> {
+pub(crate) fn min_opt(a: Option<f64>, b: Option<f64>) -> Option<f64> {
     match (a, b) {
         (Some(x), Some(y)) => Some(x.min(y)),
         (x, None) => x,
@@ -142,13 +153,13 @@ fn min_opt(a: Option<f64>, b: Option<f64>) -> Option<f64> {
 
 /// The parry2d peer: the true pieces as convex polygons (segments for walls)
 /// in one compound, which keeps its own BVH.
-struct ParryScene {
+pub(crate) struct ParryScene {
     compound: Option<Compound>,
     bytes: usize,
 }
 
 impl ParryScene {
-    fn new(outlines: &[Vec<(f64, f64)>]) -> Self {
+    pub(crate) fn new(outlines: &[Vec<(f64, f64)>]) -> Self {
         let mut bytes = 0;
         let parts: Vec<(Pose, SharedShape)> = outlines
             .iter()
@@ -167,7 +178,7 @@ impl ParryScene {
         Self { compound: (!parts.is_empty()).then(|| Compound::new(parts)), bytes }
     }
 
-    fn cast(&self, o: (f64, f64), d: (f64, f64), max: f64) -> Option<f64> {
+    pub(crate) fn cast(&self, o: (f64, f64), d: (f64, f64), max: f64) -> Option<f64> {
         let c = self.compound.as_ref()?;
         let ray = Ray::new(Vector::new(o.0, o.1), Vector::new(d.0, d.1));
         c.cast_local_ray(&ray, max, true)
@@ -177,7 +188,7 @@ impl ParryScene {
 type Method<'a> = Box<dyn Fn(&Win) -> Option<f64> + 'a>;
 
 /// The map as the bench reads it: the compiled bytes, aligned.
-fn load(path: &std::path::Path) -> Result<AlignedBytes, LabError> {
+pub(crate) fn load(path: &std::path::Path) -> Result<AlignedBytes, LabError> {
     if path.extension().is_some_and(|e| e == "map") {
         return read_compiled(path);
     }
@@ -185,6 +196,13 @@ fn load(path: &std::path::Path) -> Result<AlignedBytes, LabError> {
     let (blob, _) =
         crate::map::build::build_map(&shapes, 100, 500).map_err(|e| LabError(format!("{}: {e}", path.display())))?;
     Ok(AlignedBytes::new(&blob))
+}
+
+/// The true pieces' outlines, m.
+pub(crate) fn outlines_of(map: &MapView<'_>) -> Vec<Vec<(f64, f64)>> {
+    map.pieces_iter()
+        .map(|p| p.shape.vertices().iter().map(|v| (f64::from(v.x) / 1000.0, f64::from(v.y) / 1000.0)).collect())
+        .collect()
 }
 
 pub fn bench_cmd(a: &BenchArgs) -> Result<String, LabError> {
@@ -235,10 +253,7 @@ fn bench_map(
 ) -> Result<serde_json::Value, LabError> {
     let aligned = load(path)?;
     let map = view_of(&aligned, path)?;
-    let outlines: Vec<Vec<(f64, f64)>> = map
-        .pieces_iter()
-        .map(|p| p.shape.vertices().iter().map(|v| (f64::from(v.x) / 1000.0, f64::from(v.y) / 1000.0)).collect())
-        .collect();
+    let outlines = outlines_of(&map);
     let wins = poses(&map, a.poses, a.seed);
     if wins.len() < a.poses {
         return Err(LabError(format!("only {} free poses found", wins.len())));
@@ -249,11 +264,18 @@ fn bench_map(
     let dist = grid::DistanceMap::of(&grid);
     let parry = ParryScene::new(&outlines);
     let setup_s = t.elapsed().as_secs_f64();
+    let t = Instant::now();
+    let polyline = peers::PolylineScene::new(&outlines);
+    let polyline_s = t.elapsed().as_secs_f64();
+    let t = Instant::now();
+    let cddt = peers::Cddt::new(&grid, peers::CDDT_THETA_DISCRETIZATION);
+    let cddt_s = t.elapsed().as_secs_f64();
     let net = CredenceNet::shipped();
     let r_max = f64::from(R_MAX_MM) / 1000.0;
     let diag = res * std::f64::consts::SQRT_2;
 
     let mut methods_json = Vec::new();
+    let mut summary = Vec::new();
     let mut checks = Vec::new();
     for &half_deg in &a.half_angles_deg {
         let wp = WindowParams {
@@ -286,6 +308,21 @@ fn bench_map(
                 }),
             ),
             (
+                "bresenham_1deg_pruned",
+                true,
+                grid.bytes(),
+                Box::new(|w: &Win| {
+                    peers::bresenham_fan_pruned(
+                        &grid,
+                        w.origin_m(),
+                        f64::from(w.heading),
+                        half,
+                        1f64.to_radians(),
+                        r_max,
+                    )
+                }),
+            ),
+            (
                 "bresenham_0.25deg",
                 true,
                 grid.bytes(),
@@ -304,6 +341,22 @@ fn bench_map(
                 }),
             ),
             (
+                "ray_marching_1deg_pruned",
+                true,
+                grid.bytes() + dist.bytes(),
+                Box::new(|w: &Win| {
+                    peers::march_fan_pruned(
+                        &grid,
+                        &dist,
+                        w.origin_m(),
+                        f64::from(w.heading),
+                        half,
+                        1f64.to_radians(),
+                        r_max,
+                    )
+                }),
+            ),
+            (
                 "parry2d_1deg",
                 false,
                 parry.bytes,
@@ -311,6 +364,20 @@ fn bench_map(
                     fan(f64::from(w.heading), half, 1f64.to_radians())
                         .fold(None, |b, d| min_opt(b, parry.cast(w.origin_m(), d, r_max)))
                 }),
+            ),
+            (
+                "parry2d_polyline_1deg",
+                false,
+                polyline.bytes,
+                Box::new(|w: &Win| {
+                    polyline.fan_pruned(w.origin_m(), f64::from(w.heading), half, 1f64.to_radians(), r_max)
+                }),
+            ),
+            (
+                "cddt_1deg",
+                true,
+                cddt.bytes(),
+                Box::new(|w: &Win| cddt.fan(w.origin_m(), f64::from(w.heading), half, 1f64.to_radians(), r_max)),
             ),
             ("echoloc_exact", false, aligned.bytes().len(), Box::new(exact)),
             (
@@ -379,12 +446,61 @@ fn bench_map(
                 "completeness": completeness, "bytes": bytes,
             }));
         }
+        // The full prediction against the fastest peer, parry2d's faster
+        // setup and the faster 1° Bresenham fan.
+        let fastest = |pick: &dyn Fn(&str) -> bool| -> Value {
+            let best =
+                methods.iter().enumerate().filter(|(_, m)| pick(m.0)).min_by(|a, b| per(a.0).total_cmp(&per(b.0)));
+            match best {
+                Some((k, m)) => json!({"method": m.0, "ns_per_window": per(k).round(), "ratio": round4(per(k) / full)}),
+                None => Value::Null,
+            }
+        };
+        summary.push(json!({
+            "half_angle_deg": half_deg,
+            "echoloc_full_ns_per_window": full.round(),
+            "fastest_peer": fastest(&|n: &str| !n.starts_with("echoloc")),
+            "parry2d": fastest(&|n: &str| n.starts_with("parry2d")),
+            "bresenham_1deg": fastest(&|n: &str| n.starts_with("bresenham_1deg")),
+        }));
     }
+    eprintln!("{}", summary_table(&path.display().to_string(), &summary));
     Ok(json!({
         "map": path.display().to_string(), "pieces": map.piece_count(), "windows_per_half_angle": wins.len(),
         "rounds": a.rounds, "cell_mm": a.cell_mm, "grid": [grid.w, grid.h], "r_max_m": r_max,
-        "setup_s": round4(setup_s), "reference_check": checks, "methods": methods_json,
+        "setup_s": round4(setup_s), "reference_check": checks, "methods": methods_json, "summary": summary,
+        "polyline_segments": polyline.segments, "polyline_setup_s": round4(polyline_s),
+        "cddt": {"theta_discretization": cddt.theta_discretization, "zero_points": cddt.zero_points(),
+                 "bytes": cddt.bytes(), "setup_s": round4(cddt_s)},
     }))
+}
+
+/// The summary as a table (printed to stderr, beside the JSON on stdout).
+fn summary_table(map: &str, summary: &[Value]) -> String {
+    let mut out = format!(
+        "{map}: the full prediction against the peers (ratio: the peer's ns over the full's; above 1: echoloc faster)\n\
+         {:>5} {:>8} | {:<25}{:>8}{:>7} | {:<22}{:>8}{:>7} | {:<22}{:>8}{:>7}\n",
+        "half", "full ns", "fastest peer", "ns", "ratio", "parry2d", "ns", "ratio", "bresenham 1deg", "ns", "ratio"
+    );
+    let cell = |v: &Value, w: usize| {
+        format!(
+            "{:<w$}{:>8}{:>7.2}",
+            v["method"].as_str().unwrap_or("-"),
+            v["ns_per_window"].as_f64().unwrap_or(f64::NAN),
+            v["ratio"].as_f64().unwrap_or(f64::NAN),
+        )
+    };
+    for s in summary {
+        out += &format!(
+            "{:>5} {:>8} | {} | {} | {}\n",
+            s["half_angle_deg"].as_f64().unwrap_or(f64::NAN),
+            s["echoloc_full_ns_per_window"].as_f64().unwrap_or(f64::NAN),
+            cell(&s["fastest_peer"], 25),
+            cell(&s["parry2d"], 22),
+            cell(&s["bresenham_1deg"], 22),
+        );
+    }
+    out
 }
 
 fn round4(v: f64) -> f64 {

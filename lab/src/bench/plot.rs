@@ -7,8 +7,20 @@ use serde_json::Value;
 
 use crate::figure::{encode, err, legend, rgb, Figure, Format, Root, FONT};
 
-const COLOURS: [[u8; 3]; 7] =
-    [[230, 97, 1], [253, 184, 99], [178, 171, 210], [94, 60, 153], [0, 109, 44], [116, 196, 118], [0, 0, 0]];
+const COLOURS: [[u8; 3]; 12] = [
+    [230, 97, 1],
+    [253, 184, 99],
+    [178, 171, 210],
+    [94, 60, 153],
+    [0, 109, 44],
+    [116, 196, 118],
+    [0, 0, 0],
+    [31, 120, 180],
+    [166, 206, 227],
+    [227, 26, 28],
+    [153, 153, 153],
+    [177, 89, 40],
+];
 
 /// (method, [(pieces, ns per window)]) at the largest half-angle benchmarked.
 type Lines = Vec<(String, Vec<(f64, f64)>)>;
