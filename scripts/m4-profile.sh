@@ -67,12 +67,13 @@ for pc, n in runs.items():
 print(f"{total} instructions executed")
 for name, k in by.most_common(top):
     print(f"{k:>10} {100.0 * k / total:5.1f}%  {name[:110]}")
+# Executions of every instruction address, for the two attributions below.
+per_pc = collections.Counter()
+for pc, n in runs.items():
+    for a in pcs.get(pc, [pc]):
+        per_pc[a] += n
+addrs_l = sorted(per_pc)
 if lines:
-    per_pc = collections.Counter()
-    for pc, n in runs.items():
-        for a in pcs.get(pc, [pc]):
-            per_pc[a] += n
-    addrs_l = sorted(per_pc)
     out = subprocess.run([a2l, "-e", elf], input="\n".join(hex(a) for a in addrs_l), capture_output=True, text=True).stdout.split("\n")
     by_line = collections.Counter()
     for a, loc in zip(addrs_l, out):
@@ -82,11 +83,6 @@ if lines:
     for loc, k in by_line.most_common(top):
         print(f"{k:>10} {100.0 * k / total:5.1f}%  {loc[:110]}")
 if by_step:
-    per_pc = collections.Counter()
-    for pc, n in runs.items():
-        for a in pcs.get(pc, [pc]):
-            per_pc[a] += n
-    addrs_l = sorted(per_pc)
     out = subprocess.run([a2l, "-e", elf, "-a", "-i", "-f", "-C"], input="\n".join(hex(a) for a in addrs_l),
                          capture_output=True, text=True).stdout.split("\n")
     chains, a, buf, i = {}, None, [], 0
