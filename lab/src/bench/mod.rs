@@ -303,8 +303,7 @@ fn bench_map(
                 true,
                 grid.bytes(),
                 Box::new(|w: &Win| {
-                    fan(f64::from(w.heading), half, 1f64.to_radians())
-                        .fold(None, |b, d| min_opt(b, grid.bresenham(w.origin_m(), d, r_max)))
+                    peers::bresenham_fan(&grid, w.origin_m(), f64::from(w.heading), half, 1f64.to_radians(), r_max)
                 }),
             ),
             (
@@ -327,8 +326,7 @@ fn bench_map(
                 true,
                 grid.bytes(),
                 Box::new(|w: &Win| {
-                    fan(f64::from(w.heading), half, 0.25f64.to_radians())
-                        .fold(None, |b, d| min_opt(b, grid.bresenham(w.origin_m(), d, r_max)))
+                    peers::bresenham_fan(&grid, w.origin_m(), f64::from(w.heading), half, 0.25f64.to_radians(), r_max)
                 }),
             ),
             (
@@ -336,8 +334,7 @@ fn bench_map(
                 true,
                 grid.bytes() + dist.bytes(),
                 Box::new(|w: &Win| {
-                    fan(f64::from(w.heading), half, 1f64.to_radians())
-                        .fold(None, |b, d| min_opt(b, dist.march(&grid, w.origin_m(), d, r_max)))
+                    peers::march_fan(&grid, &dist, w.origin_m(), f64::from(w.heading), half, 1f64.to_radians(), r_max)
                 }),
             ),
             (

@@ -51,10 +51,22 @@ pub fn bresenham_fan(g: &Grid, o: (f64, f64), heading: f64, half: f64, step: f64
 
 /// The range-pruned Bresenham fan: the same answer as [`bresenham_fan`].
 pub fn bresenham_fan_pruned(g: &Grid, o: (f64, f64), heading: f64, half: f64, step: f64, r_max: f64) -> Option<f64> {
-    let slack = PRUNE_SLACK_CELLS * g.res;
+    pruned_fan(heading, half, step, r_max, PRUNE_SLACK_CELLS * g.res, |d, limit| g.bresenham_within(o, d, r_max, limit))
+}
+
+/// A fan's nearest hit, each ray cast (`cast(direction, limit)`) only as far
+/// as the best range so far plus `slack`, never past `r_max`.
+fn pruned_fan(
+    heading: f64,
+    half: f64,
+    step: f64,
+    r_max: f64,
+    slack: f64,
+    cast: impl Fn((f64, f64), f64) -> Option<f64>,
+) -> Option<f64> {
     fan(heading, half, step).fold(None, |b: Option<f64>, d| {
         let limit = b.map_or(r_max, |b| (b + slack).min(r_max));
-        min_opt(b, g.bresenham_within(o, d, r_max, limit))
+        min_opt(b, cast(d, limit))
     })
 }
 
@@ -81,11 +93,7 @@ pub fn march_fan_pruned(
     step: f64,
     r_max: f64,
 ) -> Option<f64> {
-    let slack = PRUNE_SLACK_CELLS * g.res;
-    fan(heading, half, step).fold(None, |b: Option<f64>, d| {
-        let limit = b.map_or(r_max, |b| (b + slack).min(r_max));
-        min_opt(b, dm.march(g, o, d, limit))
-    })
+    pruned_fan(heading, half, step, r_max, PRUNE_SLACK_CELLS * g.res, |d, limit| dm.march(g, o, d, limit))
 }
 
 /// parry2d on one `Polyline` of the obstacles' surface edges.
