@@ -21,6 +21,7 @@ use super::expect::FieldLookup;
 use super::history::History;
 use super::particles::{Cluster, McConfig, ParticleError, ParticleSet, Sensed, Weighed};
 use super::scan::{Candidate, ScanConfig, Sweep, SCAN_KEEP};
+use super::{SAME_PLACE_M, SAME_PLACE_RAD};
 use crate::credence::Credence;
 use crate::f32math::{sin_cos, sqrt};
 use crate::map::field::FieldView;
@@ -769,8 +770,7 @@ impl<const N: usize> Localizer<N> {
         };
         let elsewhere = |p: &[f32; 3]| {
             cluster.is_none_or(|k| {
-                let (dx, dy) = (p[0] - k.mean[0], p[1] - k.mean[1]);
-                dx * dx + dy * dy > 1.0 || wrap(p[2] - k.mean[2]).abs() > 20.0 * core::f32::consts::PI / 180.0
+                dist2(p, &k.mean) > SAME_PLACE_M * SAME_PLACE_M || heading_apart(p, &k.mean) > SAME_PLACE_RAD
             })
         };
         let mut rival = None;
@@ -791,9 +791,9 @@ impl<const N: usize> Localizer<N> {
         if let Some((p, lead)) = kept {
             // The same hypothesis as this cycle's candidate keeps its sum;
             // another one stands if it is the stronger.
+            // (Not `!elsewhere`: a NaN pose is neither near nor elsewhere.)
             let near = |a: &[f32; 3], b: &[f32; 3]| {
-                let (dx, dy) = (a[0] - b[0], a[1] - b[1]);
-                dx * dx + dy * dy <= 1.0 && wrap(a[2] - b[2]).abs() <= 20.0 * core::f32::consts::PI / 180.0
+                dist2(a, b) <= SAME_PLACE_M * SAME_PLACE_M && heading_apart(a, b) <= SAME_PLACE_RAD
             };
             if rival.is_none_or(|(q, d)| near(&p, &q) || lead < d) {
                 rival = Some((p, lead));
@@ -922,4 +922,18 @@ impl<const N: usize> Localizer<N> {
     pub fn counts(&self) -> LocalizerCounts {
         self.counts
     }
+}
+
+/// The squared distance between two poses' positions, m².
+#[inline(always)]
+fn dist2(a: &[f32; 3], b: &[f32; 3]) -> f32 {
+    let (dx, dy) = (a[0] - b[0], a[1] - b[1]);
+    dx * dx + dy * dy
+}
+
+/// The difference of two poses' headings, rad, in `[0, π]` (apart: the
+/// callers look at it only when the positions are close, it costs a wrap).
+#[inline(always)]
+fn heading_apart(a: &[f32; 3], b: &[f32; 3]) -> f32 {
+    wrap(a[2] - b[2]).abs()
 }

@@ -37,6 +37,13 @@ pub mod particles;
 pub mod rng;
 pub mod scan;
 
+/// Two poses are one hypothesis within a metre and 20° of each other: the
+/// sweep keeps its spread proposals this far apart, the verification calls
+/// a pose this far from the cluster a rival.
+pub(crate) const SAME_PLACE_M: f32 = 1.0;
+pub(crate) const SAME_PLACE_DEG: f32 = 20.0;
+pub(crate) const SAME_PLACE_RAD: f32 = SAME_PLACE_DEG * core::f32::consts::PI / 180.0;
+
 pub use beam::BeamModel;
 pub use expect::FieldLookup;
 pub use history::History;

@@ -18,6 +18,7 @@
 use super::beam::BeamModel;
 use super::expect::FieldLookup;
 use super::particles::Sensed;
+use super::{SAME_PLACE_DEG, SAME_PLACE_M};
 use crate::f32math::{ln_fast, sin_cos};
 use crate::map::field::Expected;
 use crate::referencing::Reading;
@@ -134,7 +135,7 @@ impl Sweep {
         let (lut, geo) = (lut.get(..k).unwrap_or(&[]), geo.get(..k).unwrap_or(&[]));
         let step = stride(nodes);
         // 20° in heading bins.
-        let apart = (dirs as f32 * 20.0 / 360.0) as usize;
+        let apart = (dirs as f32 * SAME_PLACE_DEG / 360.0) as usize;
         let mut scored = 0u32;
         let mut visited = 0u32;
         // Two lists. The best `keep − keep/3` by score alone (one place's
@@ -145,8 +146,8 @@ impl Sweep {
         // without it the verification never sees a rival and hands off to
         // whichever of two identical rooms scored a node higher.
         let n_diverse = keep / 3;
-        let mut best = Kept::list(keep - n_diverse);
-        let mut diverse = Kept::list(n_diverse);
+        let mut best = KeptList::new(keep - n_diverse);
+        let mut diverse = KeptList::new(n_diverse);
         while scored < u32::from(cfg.nodes_per_cycle) && visited < nodes {
             let n = self.next.checked_rem(nodes).unwrap_or(0);
             // `n + step` past the end wraps to the start (`step ≤ nodes`),
@@ -257,7 +258,7 @@ impl Sweep {
 }
 
 /// How far apart two proposals must stand, mm (or 20° in heading).
-const APART_MM: i64 = 1_000;
+const APART_MM: i64 = (SAME_PLACE_M * 1000.0) as i64;
 
 /// A proposal while the sweep runs: its score (1/16 nat), node position
 /// (mm) and heading bin.
@@ -277,13 +278,12 @@ struct KeptList {
     worst: i32,
 }
 
-impl Kept {
-    fn list(cap: usize) -> KeptList {
+impl KeptList {
+    /// An empty list of at most `cap` (and `SCAN_KEEP`) proposals.
+    fn new(cap: usize) -> Self {
         KeptList { kept: heapless::Vec::new(), cap: cap.min(SCAN_KEEP), worst: i32::MIN }
     }
-}
 
-impl KeptList {
     /// Whether a proposal of `score` could enter.
     fn wants(&self, score: i32) -> bool {
         self.cap > 0 && (self.kept.len() < self.cap || score > self.worst)
