@@ -660,8 +660,7 @@ impl<const N: usize> Localizer<N> {
     /// the gate's counts say so.
     fn monitor(&mut self, lookup: &FieldLookup<'_, '_>, report: &mut CycleReport) -> bool {
         let c = &self.cfg;
-        // (A fold that saturates: `count` would carry an overflow check.)
-        let k = self.sensed.iter().filter(|r| r.reading != Reading::Invalid).fold(0usize, |n, _| n.saturating_add(1));
+        let k = Sensed::usable(&self.sensed);
         if N == 0 || lookup.field().is_empty() || k < usize::from(c.handoff_min_readings) {
             return false;
         }

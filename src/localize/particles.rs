@@ -31,6 +31,14 @@ pub struct Sensed {
     pub reading: Reading,
 }
 
+impl Sensed {
+    /// How many of `sensed` are usable readings (not `Invalid`). A fold
+    /// that saturates, where `count` would carry an overflow check.
+    pub(crate) fn usable(sensed: &[Sensed]) -> usize {
+        sensed.iter().filter(|r| r.reading != Reading::Invalid).fold(0usize, |n, _| n.saturating_add(1))
+    }
+}
+
 /// The odometry's noise, for moving particles: variances per metre driven
 /// and per radian turned, and a floor per cycle so that particles spread
 /// even while the robot stands.
@@ -458,8 +466,7 @@ impl<const N: usize> ParticleSet<N> {
     /// the particles' frame) and normalises the weights.
     pub fn weigh(&mut self, sensed: &[Sensed], lookup: &FieldLookup<'_, '_>, cfg: &McConfig) -> Weighed {
         let extra = self.extra_var(cfg);
-        // (A fold that saturates: `count` would carry an overflow check.)
-        let k = sensed.iter().filter(|r| r.reading != Reading::Invalid).fold(0usize, |n, _| n.saturating_add(1));
+        let k = Sensed::usable(sensed);
         if self.n == 0 {
             return Weighed::default();
         }
