@@ -270,7 +270,7 @@ pub fn predict<M: MapSource + ?Sized, K: Credence + ?Sized>(
     // which must make the panic-never link fail.
     #[cfg(echoloc_plant_panic)]
     let _ = keys[core::hint::black_box(0)];
-    // `scripts/panic-never.sh --plant-overflow` only: a sum no bound covers,
+    // `scripts/panic-never.sh --overflow --plant` only: a sum no bound covers,
     // which the overflow count must find.
     #[cfg(echoloc_plant_overflow)]
     {
