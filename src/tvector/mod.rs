@@ -89,6 +89,34 @@ impl Entry {
     }
 }
 
+/// The closed cone of directions in which a ray from a point strictly
+/// outside a solid piece meets it: between the rays to the two ends of the
+/// piece's front chain (its tangent vertices), less than a half-turn wide.
+/// A segment from that point whose direction lies outside it misses the
+/// piece, so the pseudo-paths' exact test ([`Convex::hits_segment_with`])
+/// runs only for the paths inside it: two cross products instead of a
+/// t-vector for every other path.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Cone {
+    /// From the point to the first vertex of the front chain ...
+    a: (i32, i32),
+    /// ... and to its last, clockwise of `a` (the piece is
+    /// counter-clockwise, so its front chain turns clockwise as seen from
+    /// outside). In `i32`: differences of in-range points fit, and each
+    /// cross product is then two 32 × 32 → 64-bit multiplies.
+    b: (i32, i32),
+}
+
+impl Cone {
+    /// Whether the direction `d` (a difference of in-range points) lies in
+    /// the closed cone; the zero direction does.
+    #[inline]
+    pub fn contains(&self, d: (i64, i64)) -> bool {
+        let (a, b) = ((self.a.0 as i64, self.a.1 as i64), (self.b.0 as i64, self.b.1 as i64));
+        cross(a, d) <= 0 && cross(d, b) <= 0
+    }
+}
+
 impl Convex<'_> {
     /// The t-vector of `p` against this piece.
     #[inline]
@@ -115,6 +143,56 @@ impl Convex<'_> {
             }
         }
         TVector(bits)
+    }
+
+    /// The [`Cone`] of `p`, whose t-vector is `tp`: `None` when `p` is not
+    /// strictly outside (`tp` empty), for a wall, or when the front chain is
+    /// not one run of edges (never, for a valid piece and an in-range point;
+    /// a caller then tests every direction).
+    ///
+    /// ```
+    /// use echoloc::geometry::{Convex, Point};
+    /// let sq = [Point::new(0, 0), Point::new(10, 0), Point::new(10, 10), Point::new(0, 10)];
+    /// let piece = Convex::new(&sq).unwrap();
+    /// let p = Point::new(20, 5);
+    /// let cone = piece.cone_from(p, piece.tvector(p)).unwrap();
+    /// assert!(cone.contains(Point::new(-5, 5).sub(p)));
+    /// assert!(cone.contains(Point::new(10, 10).sub(p))); // a tangent vertex
+    /// assert!(!cone.contains(Point::new(20, 50).sub(p)));
+    /// assert!(!cone.contains(Point::new(40, 5).sub(p))); // the other way
+    /// ```
+    pub fn cone_from(&self, p: Point, tp: TVector) -> Option<Cone> {
+        let v = self.vertices();
+        let n = v.len();
+        if !(3..=32).contains(&n) {
+            return None;
+        }
+        let full = u32::MAX >> (32 - n);
+        let m = tp.bits() & full;
+        // Bit i of `before`: edge i − 1 is a front edge. One run of front
+        // edges has one start (none when `m` is empty or full).
+        let before = (m << 1 | m >> (n - 1)) & full;
+        let starts = m & !before;
+        if starts.count_ones() != 1 {
+            return None;
+        }
+        // The chain runs from the start of its first edge to the end of its last.
+        let i = starts.trailing_zeros() as usize;
+        let j = i + m.count_ones() as usize;
+        let a = v.get(i)?.sub(p);
+        let b = v.get(if j < n { j } else { j - n })?.sub(p);
+        (cross(a, b) < 0).then_some(Cone { a: (a.0 as i32, a.1 as i32), b: (b.0 as i32, b.1 as i32) })
+    }
+
+    /// Whether the closed segment from `p` to `g` meets the closed piece, `p`
+    /// strictly outside with t-vector `tp` and cone `cone` (from
+    /// [`Convex::cone_from`]): exact, as [`Convex::hits_segment`]. Outside
+    /// the cone even the ray misses. Inside it the ray meets the piece, so
+    /// the segment's own line is no separating axis, and the segment misses
+    /// only when both ends lie outside one same edge: no vertex loop.
+    #[inline]
+    pub fn hits_from(&self, tp: TVector, cone: &Cone, p: Point, g: Point) -> bool {
+        cone.contains(g.sub(p)) && !tp.shares_outside(self.tvector(g))
     }
 
     /// The front (visible) surfaces seen from the point whose t-vector is `t`:
@@ -154,7 +232,8 @@ impl Convex<'_> {
     }
 
     /// Exact decision: does the closed segment `ab` meet the closed piece?
-    #[inline]
+    /// Never inlined: one copy serves every caller (flash).
+    #[inline(never)]
     pub fn hits_segment(&self, a: Point, b: Point) -> bool {
         self.hits_segment_with(a, self.tvector(a), b, self.tvector(b))
     }
@@ -213,6 +292,131 @@ mod tests {
         assert_eq!(c.tvector(p(5, -3)).bits(), 0b0001);
         assert_eq!(c.tvector(p(20, 20)).bits(), 0b0110);
         assert_eq!(c.tvector(p(-1, 5)).bits(), 0b1000);
+    }
+
+    /// Against the exact segment test on a ray long enough to pass every
+    /// vertex: a direction lies in the cone exactly when the ray meets the
+    /// piece, on random convex pieces of 3–32 vertices, from random outside
+    /// points, for random directions, the directions to every vertex (always
+    /// in), and those directions turned by a unit (the cone's edges).
+    #[test]
+    fn cone_is_exactly_the_directions_whose_ray_meets_the_piece() {
+        let mut x = 0x853c_49e6_748f_ea9bu64;
+        let mut next = |span: i64| {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            (x >> 11) as i64 % (2 * span + 1) - span
+        };
+        let (mut inside, mut outside, mut pieces) = (0, 0, 0);
+        for _ in 0..3_000 {
+            let n = 3 + next(14).unsigned_abs() as usize * 2 % 30;
+            let r = 1_000 + next(1_000_000).abs();
+            let mut ang: [f64; 32] = [0.0; 32];
+            for a in ang[..n].iter_mut() {
+                *a = (next(1 << 20) as f64 / (1 << 20) as f64 + 1.0) * core::f64::consts::PI;
+            }
+            ang[..n].sort_by(|a, b| a.partial_cmp(b).unwrap());
+            let mut verts = [p(0, 0); 32];
+            for (v, a) in verts.iter_mut().zip(&ang[..n]) {
+                *v = p((r as f64 * a.cos()).round() as i32, (r as f64 * a.sin()).round() as i32);
+            }
+            let Ok(piece) = Convex::new(&verts[..n]) else { continue };
+            if piece.is_wall() {
+                continue;
+            }
+            let o = p(next(3_000_000) as i32, next(3_000_000) as i32);
+            let to = piece.tvector(o);
+            if to.is_inside() {
+                continue;
+            }
+            pieces += 1;
+            let cone = piece.cone_from(o, to).expect("a cone from every outside point");
+            let ray_hits = |d: (i64, i64)| {
+                let k = (6_000_000 / d.0.abs().max(d.1.abs()).max(1)).max(1) + 1;
+                let end = p((o.x as i64 + d.0 * k) as i32, (o.y as i64 + d.1 * k) as i32);
+                piece.hits_segment(o, end)
+            };
+            let mut check = |d: (i64, i64)| {
+                if d == (0, 0) {
+                    return;
+                }
+                let c = cone.contains(d);
+                assert_eq!(c, ray_hits(d), "piece {:?}, from {o:?}, direction {d:?}", piece.vertices());
+                if c {
+                    inside += 1;
+                } else {
+                    outside += 1;
+                }
+            };
+            for &v in piece.vertices() {
+                let d = v.sub(o);
+                assert!(cone.contains(d), "the direction to vertex {v:?} from {o:?}");
+                let s = 1_000_000 / d.0.abs().max(d.1.abs()).max(1) + 1;
+                for (ex, ey) in [(1, 0), (-1, 0), (0, 1), (0, -1)] {
+                    check((d.0 * s + ex, d.1 * s + ey));
+                }
+            }
+            for _ in 0..20 {
+                check((next(1_000_000), next(1_000_000)));
+            }
+        }
+        assert!(pieces > 2_000 && inside > 10_000 && outside > 10_000, "{pieces} pieces, {inside} in, {outside} out");
+    }
+
+    /// `hits_from` against `hits_segment` on random pieces, from random
+    /// outside points, to ends short of, in, across and past the piece.
+    #[test]
+    fn hits_from_answers_as_hits_segment() {
+        let mut x = 0x2f69_3b1a_c0de_4421u64;
+        let mut next = |span: i64| {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            (x >> 11) as i64 % (2 * span + 1) - span
+        };
+        let (mut hits, mut misses) = (0, 0);
+        for _ in 0..3_000 {
+            let n = 3 + next(14).unsigned_abs() as usize * 2 % 30;
+            let r = 200 + next(20_000).abs();
+            let mut ang: [f64; 32] = [0.0; 32];
+            for a in ang[..n].iter_mut() {
+                *a = (next(1 << 20) as f64 / (1 << 20) as f64 + 1.0) * core::f64::consts::PI;
+            }
+            ang[..n].sort_by(|a, b| a.partial_cmp(b).unwrap());
+            let mut verts = [p(0, 0); 32];
+            for (v, a) in verts.iter_mut().zip(&ang[..n]) {
+                *v = p((r as f64 * a.cos()).round() as i32, (r as f64 * a.sin()).round() as i32);
+            }
+            let Ok(piece) = Convex::new(&verts[..n]) else { continue };
+            let o = p(next(60_000) as i32, next(60_000) as i32);
+            let to = piece.tvector(o);
+            let Some(cone) = piece.cone_from(o, to) else { continue };
+            for k in 0..40 {
+                // Ends near the piece (short of it, inside it, just past it)
+                // and far off.
+                let span = if k % 2 == 0 { r + 50 } else { 80_000 };
+                let g = p(next(span) as i32, next(span) as i32);
+                let want = piece.hits_segment(o, g);
+                assert_eq!(piece.hits_from(to, &cone, o, g), want, "{:?} from {o:?} to {g:?}", piece.vertices());
+                if want {
+                    hits += 1;
+                } else {
+                    misses += 1;
+                }
+            }
+        }
+        assert!(hits > 10_000 && misses > 10_000, "{hits} hits, {misses} misses");
+    }
+
+    #[test]
+    fn cone_refuses_inside_points_and_walls() {
+        let c = Convex::new(&SQ).unwrap();
+        assert_eq!(c.cone_from(p(5, 5), c.tvector(p(5, 5))), None);
+        assert_eq!(c.cone_from(p(10, 5), c.tvector(p(10, 5))), None, "on the boundary");
+        let w = [p(0, 0), p(10, 0)];
+        let wall = Convex::new(&w).unwrap();
+        assert_eq!(wall.cone_from(p(5, 5), wall.tvector(p(5, 5))), None);
     }
 
     #[test]

@@ -150,9 +150,17 @@ pub fn is_beacon(window: &Window, strategy: Strategy, p: &Piece<'_>, stats: &mut
         Strategy::PseudoPaths => {
             let shape = p.buffered;
             let to = shape.tvector(o);
+            // Strictly outside the piece (nearly always), its cone from the
+            // transducer passes over the paths beside it in two cross
+            // products each; inside, every path is tested in full.
+            let cone = shape.cone_from(o, to);
             for g in window.paths() {
                 stats.path_tests = stats.path_tests.wrapping_add(1);
-                if shape.hits_segment_with(o, to, g, shape.tvector(g)) {
+                let hit = match &cone {
+                    Some(c) => shape.hits_from(to, c, o, g),
+                    None => shape.hits_segment(o, g),
+                };
+                if hit {
                     return true;
                 }
             }
