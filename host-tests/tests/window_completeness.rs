@@ -141,6 +141,48 @@ proptest! {
     }
 }
 
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 400, ..ProptestConfig::default() })]
+
+    /// The pseudo-path strategy collects exactly the grid's candidates (by
+    /// brute force: every piece whose buffered box meets the window's box)
+    /// that some path meets, decided by `geo` on the buffered outline: the
+    /// cone that passes over most paths without a t-vector changes no
+    /// answer. Walls (two-vertex outlines at `t_b` 0) and apexes inside a
+    /// piece take the full test.
+    #[test]
+    fn pseudo_paths_collect_exactly_the_pieces_a_path_meets(c in case(), tb in prop_oneof![Just(0u32), 1u32..600]) {
+        let params = WindowParams { tb_mm: tb, ..c.params };
+        prop_assume!(params.n_pp().is_ok());
+        let m = build(&c, tb);
+        let win = Window::place_for(&params, c.apex, c.heading, Collect::PseudoPaths);
+        prop_assume!(win.is_ok());
+        let win = win.unwrap();
+        let got = collect(&m, &win, Collect::PseudoPaths);
+        let (o, area) = (win.sector.apex, win.sector.bbox());
+        let paths: Vec<Point> = win.paths().collect();
+        let mut want = BTreeSet::new();
+        for piece in m.pieces() {
+            if !piece.bbox.overlaps(&area) {
+                continue;
+            }
+            let v = piece.buffered.vertices();
+            let met = paths.iter().any(|&g| {
+                let path = geo_line(o, g);
+                if v.len() == 2 {
+                    path.intersects(&geo_line(v[0], v[1]))
+                } else {
+                    geo_polygon(v).intersects(&path)
+                }
+            });
+            if met {
+                want.insert(piece.id);
+            }
+        }
+        prop_assert_eq!(got, want);
+    }
+}
+
 #[test]
 fn below_the_buffer_condition_pseudo_paths_can_miss() {
     // θ_o 30°, R_max 5000, d_s_min 1000, δ_max 0: w_min = 1000 mm, and
