@@ -189,10 +189,26 @@ impl Convex<'_> {
     /// [`Convex::cone_from`]): exact, as [`Convex::hits_segment`]. Outside
     /// the cone even the ray misses. Inside it the ray meets the piece, so
     /// the segment's own line is no separating axis, and the segment misses
-    /// only when both ends lie outside one same edge: no vertex loop.
+    /// only when both ends lie outside one same edge: no vertex loop, and
+    /// only `p`'s front edges (the set bits of `tp`) are tested against `g`.
     #[inline]
     pub fn hits_from(&self, tp: TVector, cone: &Cone, p: Point, g: Point) -> bool {
-        cone.contains(g.sub(p)) && !tp.shares_outside(self.tvector(g))
+        if !cone.contains(g.sub(p)) {
+            return false;
+        }
+        let v = self.vertices();
+        let mut front = tp.bits();
+        while front != 0 {
+            let i = front.trailing_zeros() as usize;
+            front &= front - 1;
+            let j = if i + 1 < v.len() { i + 1 } else { 0 };
+            if let (Some(&a), Some(&b)) = (v.get(i), v.get(j)) {
+                if cross(b.sub(a), g.sub(a)) < 0 {
+                    return false; // `g` too lies strictly outside front edge `i`
+                }
+            }
+        }
+        true
     }
 
     /// The front (visible) surfaces seen from the point whose t-vector is `t`:
