@@ -255,11 +255,6 @@ pub fn predict<M: MapSource + ?Sized, K: Credence + ?Sized>(
     let area = sector.bbox();
     let q = map
         .for_each_candidate_box(area, |id, bbox| {
-            // Beside the cone: nothing of it in the window. (Worth it before the
-            // pseudo-path tests; the exact strategy's own clipping is cheaper.)
-            if params.strategy == Strategy::PseudoPaths && sector.box_outside_wedge(&bbox) {
-                return;
-            }
             let d2 = box_distance2(o, &bbox);
             if d2 > r2_max {
                 return; // nothing of it within R_max
@@ -298,14 +293,19 @@ pub fn predict<M: MapSource + ?Sized, K: Credence + ?Sized>(
         let Some(piece) = map.piece(key as u16) else { continue };
         // The exact strategy needs no test of its own here: an edge the
         // search clips into the window makes the piece meet the sector, and
-        // a piece that does not meet it has no such edge.
-        if params.strategy != Strategy::Exact && !is_beacon(window, params.strategy, &piece, &mut stats.collect) {
+        // a piece that does not meet it has no such edge. The pseudo-paths
+        // first pass over a box beside the cone (nothing of it in the window;
+        // the exact strategy's own clipping is cheaper than this test).
+        if params.strategy != Strategy::Exact
+            && (sector.box_outside_wedge(&piece.bbox)
+                || !is_beacon(window, params.strategy, &piece, &mut stats.collect))
+        {
             continue;
         }
         stats.beacons = stats.beacons.wrapping_add(1);
-        // The exact strategy's candidates are every piece in the window's box
-        // within R_max: they serve as the occlusion test's candidates too.
-        let occluders = (params.strategy == Strategy::Exact).then_some((&keys[..], area, scale));
+        // The candidates are every piece in the window's box within R_max:
+        // they serve as the occlusion test's candidates too.
+        let occluders = Some((&keys[..], area, scale));
         search_piece(map, window, &piece, params, credence, occluders, Some(oblique_limit), &mut best, &mut stats);
     }
     let mut found = best.map(|(_, p)| p);
