@@ -59,7 +59,7 @@ use crate::credence::{Credence, Kappa};
 use crate::geometry::Point;
 use crate::map::MapSource;
 use crate::window::{
-    collect_beacons, is_beacon, CollectError, CollectStats, Strategy, Window, WindowError, WindowParams,
+    collect_beacons, is_beacon_with, CollectError, CollectStats, PathEnds, Strategy, Window, WindowError, WindowParams,
 };
 
 /// Most beacons one window may hold.
@@ -285,6 +285,8 @@ pub fn predict<M: MapSource + ?Sized, K: Credence + ?Sized>(
     // 0.01° above δ_max: the walk's δ (f32, rounded to millidegrees) is
     // within 0.001° of the true angle, this test's within 10⁻⁴°.
     let oblique_limit = crate::f32math::sin_cos((params.window.delta_max_deg + 0.01).to_radians());
+    // The pseudo-paths' end points, once for every candidate.
+    let mut ends = (params.strategy == Strategy::PseudoPaths).then(|| PathEnds::new(window));
     for &key in keys.iter() {
         let lb2 = (key >> 16) as f32 * scale;
         if best.is_some_and(|(r, _)| lb2 > (r + 1.0) * (r + 1.0)) {
@@ -296,11 +298,11 @@ pub fn predict<M: MapSource + ?Sized, K: Credence + ?Sized>(
         // a piece that does not meet it has no such edge. The pseudo-paths
         // first pass over a box beside the cone (nothing of it in the window;
         // the exact strategy's own clipping is cheaper than this test).
-        if params.strategy != Strategy::Exact
-            && (sector.box_outside_wedge(&piece.bbox)
-                || !is_beacon(window, params.strategy, &piece, &mut stats.collect))
-        {
-            continue;
+        if let Some(ends) = &mut ends {
+            if sector.box_outside_wedge(&piece.bbox) || !is_beacon_with(window, Some(ends), &piece, &mut stats.collect)
+            {
+                continue;
+            }
         }
         stats.beacons = stats.beacons.wrapping_add(1);
         // The candidates are every piece in the window's box within R_max:

@@ -143,18 +143,95 @@ impl Window {
     }
 }
 
+/// Most pseudo-path end points [`PathEnds`] keeps: 21 paths cover MARGE's
+/// 30° window with `d_s_min` 300 mm.
+pub const CACHED_PATHS: usize = 32;
+
+/// A window's pseudo-path end points, each computed once for all the
+/// window's candidate pieces rather than once per piece, when first asked
+/// for: the first [`CACHED_PATHS`] of them, kept relative to the apex in
+/// 16 bits (128 bytes, on the stack only where the pseudo-paths run). Paths
+/// past those, or with ends more than 32 m off, are computed each time, as
+/// [`Window::paths`] does. Lazily: a window whose few candidates are each
+/// met by one of the first paths computes only those.
+pub struct PathEnds<'w> {
+    window: &'w Window,
+    /// End points less the apex: the first `filled` are computed.
+    rel: [(i16, i16); CACHED_PATHS],
+    filled: usize,
+}
+
+impl<'w> PathEnds<'w> {
+    /// None computed yet.
+    pub fn new(window: &'w Window) -> Self {
+        Self { window, rel: [(0, 0); CACHED_PATHS], filled: 0 }
+    }
+
+    /// How many paths the window has (0 when placed for the exact strategy).
+    pub fn len(&self) -> u32 {
+        self.window.layout.map_or(0, |l| l.n_pp)
+    }
+
+    /// Whether the window has no paths.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Path `k`'s end point, as the `k`-th of [`Window::paths`] (`None`
+    /// when it would leave the coordinates, or `k` is past the last path).
+    pub fn get(&mut self, k: u32) -> Option<Point> {
+        let w = self.window;
+        let o = w.sector.apex;
+        let i = k as usize;
+        if i < self.filled {
+            // `to_map`'s end point less the apex, added back: in range.
+            let &(dx, dy) = self.rel.get(i)?;
+            return Some(Point::new(o.x.wrapping_add(i32::from(dx)), o.y.wrapping_add(i32::from(dy))));
+        }
+        let layout = w.layout.filter(|l| k < l.n_pp)?;
+        let g = w.sector.to_map(layout.endpoint_x(k), w.params.r_max_mm as f32)?;
+        if i == self.filled {
+            let d = g.sub(o);
+            if let (Some(slot), Ok(dx), Ok(dy)) = (self.rel.get_mut(i), i16::try_from(d.0), i16::try_from(d.1)) {
+                *slot = (dx, dy);
+                self.filled = i + 1;
+            }
+        }
+        Some(g)
+    }
+}
+
 /// Whether `p` is a beacon of `window` by `strategy`, counting the tests.
+/// (The pseudo-paths' end points are computed for this piece alone: a
+/// search of many pieces makes them once, [`PathEnds`], and asks
+/// [`is_beacon_with`].)
 pub fn is_beacon(window: &Window, strategy: Strategy, p: &Piece<'_>, stats: &mut CollectStats) -> bool {
-    let o = window.sector.apex;
     match strategy {
-        Strategy::PseudoPaths => {
+        Strategy::PseudoPaths => is_beacon_with(window, Some(&mut PathEnds::new(window)), p, stats),
+        Strategy::Exact => is_beacon_with(window, None, p, stats),
+    }
+}
+
+/// [`is_beacon`] with the window's pseudo-path end points made once:
+/// `Some(ends)` for the pseudo-path strategy (`ends` of `window`), `None`
+/// for the exact one.
+pub fn is_beacon_with(
+    window: &Window,
+    ends: Option<&mut PathEnds<'_>>,
+    p: &Piece<'_>,
+    stats: &mut CollectStats,
+) -> bool {
+    let o = window.sector.apex;
+    match ends {
+        Some(ends) => {
             let shape = p.buffered;
             let to = shape.tvector(o);
             // Strictly outside the piece (nearly always), its cone from the
             // transducer passes over the paths beside it in two cross
             // products each; inside, every path is tested in full.
             let cone = shape.cone_from(o, to);
-            for g in window.paths() {
+            for k in 0..ends.len() {
+                let Some(g) = ends.get(k) else { continue };
                 stats.path_tests = stats.path_tests.wrapping_add(1);
                 let hit = match &cone {
                     Some(c) => shape.hits_from(to, c, o, g),
@@ -166,7 +243,7 @@ pub fn is_beacon(window: &Window, strategy: Strategy, p: &Piece<'_>, stats: &mut
             }
             false
         }
-        Strategy::Exact => {
+        None => {
             stats.sector_tests = stats.sector_tests.wrapping_add(1);
             window.sector.meets(p.shape)
         }
@@ -187,9 +264,10 @@ pub fn collect_beacons<M: MapSource + ?Sized, const B: usize>(
     }
     let mut stats = CollectStats::default();
     let mut full = false;
+    let mut ends = (strategy == Strategy::PseudoPaths).then(|| PathEnds::new(window));
     let q = map
         .for_each_candidate(window.sector.bbox(), |p| {
-            let hit = is_beacon(window, strategy, &p, &mut stats);
+            let hit = is_beacon_with(window, ends.as_mut(), &p, &mut stats);
             if hit && out.push(p.id).is_err() {
                 full = true;
             }
@@ -202,4 +280,64 @@ pub fn collect_beacons<M: MapSource + ?Sized, const B: usize>(
         return Err(CollectError::TooManyBeacons);
     }
     Ok(stats)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{PathEnds, Strategy, Window, WindowParams, CACHED_PATHS};
+    use crate::geometry::Point;
+
+    /// Against `to_map` of each path's lateral coordinate, asked for in a
+    /// scrambled order (the cache fills in order only), on windows with few
+    /// and many paths (past the cache), near and far ends (past 16 bits),
+    /// and apexes near the edge of the coordinates.
+    #[test]
+    fn path_ends_are_the_windows_paths() {
+        let mut x = 0x6a09_e667_f3bc_c908u64;
+        let mut next = |m: u64| {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            x % m
+        };
+        let (mut cached, mut uncached, mut windows) = (0, 0, 0);
+        for _ in 0..3_000 {
+            let params = WindowParams {
+                r_min_mm: 0,
+                r_max_mm: [2_000, 5_500, 30_000, 60_000][next(4) as usize],
+                half_angle_deg: 5.0 + next(50) as f32,
+                delta_max_deg: next(30) as f32,
+                ds_min_mm: [100, 300, 1_000, 3_000][next(4) as usize],
+                tb_mm: [0, 300][next(2) as usize],
+            };
+            let edge = crate::geometry::COORD_MAX - 40_000;
+            let c = |v: u64| v as i32 - 1_000_000;
+            let apex = if next(4) == 0 { Point::new(edge, -edge) } else { Point::new(c(next(2_000_000)), c(next(2_000_000))) };
+            let Ok(w) = Window::place_for(&params, apex, next(6283) as f32 / 1000.0, Strategy::PseudoPaths) else { continue };
+            windows += 1;
+            let layout = *w.layout().unwrap();
+            let want = |k: u32| w.sector.to_map(layout.endpoint_x(k), params.r_max_mm as f32);
+            let mut ends = PathEnds::new(&w);
+            assert_eq!(ends.len(), layout.n_pp);
+            let n = layout.n_pp;
+            for i in 0..2 * n + 2 {
+                let k = if i % 3 == 0 { next(n as u64 + 2) as u32 } else { i / 2 };
+                assert_eq!(ends.get(k), if k < n { want(k) } else { None }, "path {k} of {n}, {params:?} at {apex:?}");
+            }
+            if ends.filled == (n as usize).min(CACHED_PATHS) {
+                cached += 1;
+            } else {
+                uncached += 1;
+            }
+        }
+        assert!(windows > 1_000 && cached > 500 && uncached > 100, "{windows} windows, {cached} cached, {uncached} not");
+    }
+
+    #[test]
+    fn an_exact_window_has_no_path_ends() {
+        let w = Window::place(&WindowParams::MARGE, Point::new(0, 0), 0.0).unwrap();
+        let mut ends = PathEnds::new(&w);
+        assert!(ends.is_empty());
+        assert_eq!(ends.get(0), None);
+    }
 }

@@ -34,6 +34,8 @@ mod collect;
 mod params;
 mod sector;
 
-pub use collect::{collect_beacons, is_beacon, CollectError, CollectStats, Strategy, Window};
+pub use collect::{
+    collect_beacons, is_beacon, is_beacon_with, CollectError, CollectStats, PathEnds, Strategy, Window, CACHED_PATHS,
+};
 pub use params::{PathLayout, WindowError, WindowParams, MAX_PSEUDO_PATHS, MAX_RANGE_MM};
 pub use sector::Sector;
