@@ -2,12 +2,13 @@
 //! the compiled depot map, read in place, at the firmware's free poses.
 //!
 //! `cargo build --release -p echoloc-host-tests --example ring_profile &&
-//! valgrind --tool=callgrind target/release/examples/ring_profile`
+//! valgrind --tool=callgrind target/release/examples/ring_profile [RINGS]
+//! [exact|pseudo]` (the beacon strategy; exact by default).
 use echoloc::credence::net::CredenceNet;
 use echoloc::geometry::{Point, Rect, Segment};
 use echoloc::map::{Aligned, MapSource, MapView};
 use echoloc::predict::{predict_ring, Pose, PredictParams, PredictStats, PIONEER16};
-use echoloc::window::WindowParams;
+use echoloc::window::{Strategy, WindowParams};
 
 static DEPOT: &Aligned<[u8]> = &Aligned(*include_bytes!("../../boards/qemu-mps2-an386/depot.map"));
 
@@ -15,7 +16,14 @@ fn main() {
     let map = MapView::new(&DEPOT.0).expect("depot validates");
     let b = map.bounds().expect("pieces");
     let net = CredenceNet::shipped();
-    let params = PredictParams::new(WindowParams { tb_mm: map.buffer_mm(), ..WindowParams::MARGE });
+    let strategy = match std::env::args().nth(2).as_deref() {
+        Some("pseudo") => Strategy::PseudoPaths,
+        _ => Strategy::Exact,
+    };
+    let params = PredictParams {
+        strategy,
+        ..PredictParams::new(WindowParams { tb_mm: map.buffer_mm(), ..WindowParams::MARGE })
+    };
     let mut s = 0x2545_F491u32;
     let mut next = move || {
         s ^= s << 13;
