@@ -312,8 +312,11 @@ mod tests {
             };
             let edge = crate::geometry::COORD_MAX - 40_000;
             let c = |v: u64| v as i32 - 1_000_000;
-            let apex = if next(4) == 0 { Point::new(edge, -edge) } else { Point::new(c(next(2_000_000)), c(next(2_000_000))) };
-            let Ok(w) = Window::place_for(&params, apex, next(6283) as f32 / 1000.0, Strategy::PseudoPaths) else { continue };
+            let apex =
+                if next(4) == 0 { Point::new(edge, -edge) } else { Point::new(c(next(2_000_000)), c(next(2_000_000))) };
+            let Ok(w) = Window::place_for(&params, apex, next(6283) as f32 / 1000.0, Strategy::PseudoPaths) else {
+                continue;
+            };
             windows += 1;
             let layout = *w.layout().unwrap();
             let want = |k: u32| w.sector.to_map(layout.endpoint_x(k), params.r_max_mm as f32);
@@ -330,7 +333,10 @@ mod tests {
                 uncached += 1;
             }
         }
-        assert!(windows > 1_000 && cached > 500 && uncached > 100, "{windows} windows, {cached} cached, {uncached} not");
+        assert!(
+            windows > 1_000 && cached > 500 && uncached > 100,
+            "{windows} windows, {cached} cached, {uncached} not"
+        );
     }
 
     #[test]
