@@ -310,6 +310,32 @@ mod tests {
         assert_eq!(c.tvector(p(-1, 5)).bits(), 0b1000);
     }
 
+    /// Uniform integers in `[-span, span]`, from a fixed seed.
+    fn xorshift(mut x: u64) -> impl FnMut(i64) -> i64 {
+        move |span| {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            (x >> 11) as i64 % (2 * span + 1) - span
+        }
+    }
+
+    /// 3–32 points of a circle of radius `r` at random angles,
+    /// counter-clockwise, into `out`: their count (rounding may leave them
+    /// not strictly convex, which `Convex::new` refuses).
+    fn random_piece(next: &mut impl FnMut(i64) -> i64, r: i64, out: &mut [Point; 32]) -> usize {
+        let n = 3 + next(14).unsigned_abs() as usize * 2 % 30;
+        let mut ang = [0f64; 32];
+        for a in ang[..n].iter_mut() {
+            *a = (next(1 << 20) as f64 / (1 << 20) as f64 + 1.0) * core::f64::consts::PI;
+        }
+        ang[..n].sort_by(|a, b| a.partial_cmp(b).unwrap());
+        for (v, a) in out.iter_mut().zip(&ang[..n]) {
+            *v = p((r as f64 * a.cos()).round() as i32, (r as f64 * a.sin()).round() as i32);
+        }
+        n
+    }
+
     /// Against the exact segment test on a ray long enough to pass every
     /// vertex: a direction lies in the cone exactly when the ray meets the
     /// piece, on random convex pieces of 3–32 vertices, from random outside
@@ -317,26 +343,12 @@ mod tests {
     /// in), and those directions turned by a unit (the cone's edges).
     #[test]
     fn cone_is_exactly_the_directions_whose_ray_meets_the_piece() {
-        let mut x = 0x853c_49e6_748f_ea9bu64;
-        let mut next = |span: i64| {
-            x ^= x << 13;
-            x ^= x >> 7;
-            x ^= x << 17;
-            (x >> 11) as i64 % (2 * span + 1) - span
-        };
+        let mut next = xorshift(0x853c_49e6_748f_ea9b);
         let (mut inside, mut outside, mut pieces) = (0, 0, 0);
+        let mut verts = [p(0, 0); 32];
         for _ in 0..3_000 {
-            let n = 3 + next(14).unsigned_abs() as usize * 2 % 30;
             let r = 1_000 + next(1_000_000).abs();
-            let mut ang: [f64; 32] = [0.0; 32];
-            for a in ang[..n].iter_mut() {
-                *a = (next(1 << 20) as f64 / (1 << 20) as f64 + 1.0) * core::f64::consts::PI;
-            }
-            ang[..n].sort_by(|a, b| a.partial_cmp(b).unwrap());
-            let mut verts = [p(0, 0); 32];
-            for (v, a) in verts.iter_mut().zip(&ang[..n]) {
-                *v = p((r as f64 * a.cos()).round() as i32, (r as f64 * a.sin()).round() as i32);
-            }
+            let n = random_piece(&mut next, r, &mut verts);
             let Ok(piece) = Convex::new(&verts[..n]) else { continue };
             if piece.is_wall() {
                 continue;
@@ -384,26 +396,12 @@ mod tests {
     /// outside points, to ends short of, in, across and past the piece.
     #[test]
     fn hits_from_answers_as_hits_segment() {
-        let mut x = 0x2f69_3b1a_c0de_4421u64;
-        let mut next = |span: i64| {
-            x ^= x << 13;
-            x ^= x >> 7;
-            x ^= x << 17;
-            (x >> 11) as i64 % (2 * span + 1) - span
-        };
+        let mut next = xorshift(0x2f69_3b1a_c0de_4421);
         let (mut hits, mut misses) = (0, 0);
+        let mut verts = [p(0, 0); 32];
         for _ in 0..3_000 {
-            let n = 3 + next(14).unsigned_abs() as usize * 2 % 30;
             let r = 200 + next(20_000).abs();
-            let mut ang: [f64; 32] = [0.0; 32];
-            for a in ang[..n].iter_mut() {
-                *a = (next(1 << 20) as f64 / (1 << 20) as f64 + 1.0) * core::f64::consts::PI;
-            }
-            ang[..n].sort_by(|a, b| a.partial_cmp(b).unwrap());
-            let mut verts = [p(0, 0); 32];
-            for (v, a) in verts.iter_mut().zip(&ang[..n]) {
-                *v = p((r as f64 * a.cos()).round() as i32, (r as f64 * a.sin()).round() as i32);
-            }
+            let n = random_piece(&mut next, r, &mut verts);
             let Ok(piece) = Convex::new(&verts[..n]) else { continue };
             let o = p(next(60_000) as i32, next(60_000) as i32);
             let to = piece.tvector(o);
