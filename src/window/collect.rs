@@ -75,7 +75,8 @@ impl core::ops::AddAssign for CollectStats {
 /// so it works for any `d_s_min`, however many paths eq. (2) would ask for
 /// (the paper's generalisation to IR sensors needs small ones). The paths'
 /// end points are computed when asked ([`Window::paths`]) rather than stored,
-/// so a window is the same ~150 bytes on the stack either way.
+/// so a window is the same ~150 bytes on the stack either way; a search of
+/// the window's candidates keeps them for its own length ([`PathEnds`]).
 #[derive(Clone, Debug)]
 pub struct Window {
     /// The annular sector.
@@ -150,10 +151,24 @@ pub const CACHED_PATHS: usize = 32;
 /// A window's pseudo-path end points, each computed once for all the
 /// window's candidate pieces rather than once per piece, when first asked
 /// for: the first [`CACHED_PATHS`] of them, kept relative to the apex in
-/// 16 bits (128 bytes, on the stack only where the pseudo-paths run). Paths
+/// 16 bits (128 bytes in the frame of the search that holds them). Paths
 /// past those, or with ends more than 32 m off, are computed each time, as
 /// [`Window::paths`] does. Lazily: a window whose few candidates are each
 /// met by one of the first paths computes only those.
+///
+/// ```
+/// use echoloc::geometry::Point;
+/// use echoloc::window::{PathEnds, Strategy, Window, WindowParams};
+///
+/// let w = Window::place_for(&WindowParams::MARGE, Point::new(0, 0), 0.0, Strategy::PseudoPaths).unwrap();
+/// let mut ends = PathEnds::new(&w);
+/// assert_eq!(ends.len() as usize, w.paths().count());
+/// // The same points as the window's, whatever order they are asked in.
+/// let last = ends.len() - 1;
+/// assert_eq!(ends.get(last), w.paths().last());
+/// assert_eq!(ends.get(0), w.paths().next());
+/// assert_eq!(ends.get(last + 1), None);
+/// ```
 pub struct PathEnds<'w> {
     window: &'w Window,
     /// End points less the apex: the first `filled` are computed.
