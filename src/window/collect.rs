@@ -133,9 +133,20 @@ impl Window {
     /// The pseudo-paths' end points in the map frame, mm, in layout order
     /// (none when no layout was made).
     pub fn paths(&self) -> impl Iterator<Item = Point> + '_ {
-        let r = self.params.r_max_mm as f32;
-        let n = self.layout.map_or(0, |l| l.n_pp);
-        (0..n).filter_map(move |k| self.layout.and_then(|l| self.sector.to_map(l.endpoint_x(k), r)))
+        (0..self.path_count()).filter_map(move |k| self.path_end(k))
+    }
+
+    /// How many pseudo-paths the layout has (0 without one).
+    fn path_count(&self) -> u32 {
+        self.layout.map_or(0, |l| l.n_pp)
+    }
+
+    /// Path `k`'s end point in the map frame (`None` past the last path, or
+    /// when it would leave the coordinates).
+    #[inline]
+    fn path_end(&self, k: u32) -> Option<Point> {
+        let l = self.layout.filter(|l| k < l.n_pp)?;
+        self.sector.to_map(l.endpoint_x(k), self.params.r_max_mm as f32)
     }
 
     /// Whether `strategy` can search this window.
@@ -184,7 +195,7 @@ impl<'w> PathEnds<'w> {
 
     /// How many paths the window has (0 when placed for the exact strategy).
     pub fn len(&self) -> u32 {
-        self.window.layout.map_or(0, |l| l.n_pp)
+        self.window.path_count()
     }
 
     /// Whether the window has no paths.
@@ -203,8 +214,7 @@ impl<'w> PathEnds<'w> {
             let &(dx, dy) = self.rel.get(i)?;
             return Some(Point::new(o.x.wrapping_add(i32::from(dx)), o.y.wrapping_add(i32::from(dy))));
         }
-        let layout = w.layout.filter(|l| k < l.n_pp)?;
-        let g = w.sector.to_map(layout.endpoint_x(k), w.params.r_max_mm as f32)?;
+        let g = w.path_end(k)?;
         if i == self.filled {
             let d = g.sub(o);
             if let (Some(slot), Ok(dx), Ok(dy)) = (self.rel.get_mut(i), i16::try_from(d.0), i16::try_from(d.1)) {
