@@ -19,14 +19,13 @@ fn main() {
     let map_path = std::path::Path::new(&args[1]);
     let seed: u64 = args[2].parse().unwrap();
     let inc: f64 = args[3].parse().unwrap();
-    let (map, blob) = echoloc_lab::predict::load_map_and_blob(map_path, 100).unwrap();
+    let loaded = echoloc_lab::predict::load_map_with_field(map_path, 100).unwrap();
+    let map = loaded.view().unwrap();
     let mounts = echoloc_lab::predict::ring_mounts("pioneer16").unwrap();
     let cfg = world::WorldConfig::new(seed, 40.0, inc, mounts.clone());
     let run = world::simulate_world(&map, &cfg, &mut |_| {}).unwrap();
     let records = to_records(&run).unwrap();
-    let a = echoloc_lab::map::AlignedBytes::new(&blob);
-    let v = echoloc::map::MapView::new(a.bytes()).unwrap();
-    let lookup = FieldLookup::new(v.field());
+    let lookup = FieldLookup::new(map.field());
     let mut mc = McConfig::DEFAULT;
     let env = |k: &str, d: f32| std::env::var(k).ok().and_then(|v| v.parse().ok()).unwrap_or(d);
     mc.beam.sigma_mm = env("SIG", mc.beam.sigma_mm);

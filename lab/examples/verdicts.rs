@@ -11,6 +11,7 @@
 //! fine); RING is `pioneer16` (the default) or a ring JSON file.
 
 use echoloc::credence::net::CredenceNet;
+use echoloc::map::MapSource;
 use echoloc::predict::{predict_ring, Pose};
 use echoloc::referencing::{judge, Reading, VerdictConfig};
 use echoloc_lab::predict::load_map;
@@ -40,12 +41,11 @@ fn main() -> Result<(), LabError> {
     if readings.len() > ring.len() {
         return Err(LabError(format!("{} ranges for a ring of {}", readings.len(), ring.len())));
     }
-    // `load_map` may split large polygons: the lab's CLI gives that a big
-    // stack; a small map like these needs none.
-    let map = load_map(map.as_ref(), 100)?;
+    let loaded = load_map(map.as_ref(), 100)?;
+    let map = loaded.view()?;
     let pose = Pose { x_mm: (x * 1000.0) as f32, y_mm: (y * 1000.0) as f32, heading_rad: th as f32 };
     let mut predicted = vec![None; ring.len()];
-    predict_ring(&*map, &pose, &ring, &predict_params(map.buffer_mm()), &CredenceNet::shipped(), &mut predicted)
+    predict_ring(&map, &pose, &ring, &predict_params(map.buffer_mm()), &CredenceNet::shipped(), &mut predicted)
         .map_err(|e| LabError(format!("prediction: {e}")))?;
     println!("transducer  predicted (mm)  kappa  reading (mm)  verdict");
     for (i, (p, r)) in predicted.iter().zip(&readings).enumerate() {

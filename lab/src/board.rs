@@ -21,7 +21,7 @@ use serde_json::{json, Value};
 use crate::bag::cli::BagTopics;
 use crate::log::Log;
 use crate::map::LabError;
-use crate::predict::{load_map_and_blob, ring_mounts};
+use crate::predict::{load_map_with_field, ring_mounts};
 use crate::replay::{parse_pose, start, steps_of_log};
 use crate::simulate::{filters, report};
 
@@ -140,8 +140,8 @@ pub fn board_cmd(a: &BoardArgs) -> Result<String, LabError> {
             mounts.len()
         )));
     }
-    let (map, blob) = load_map_and_blob(&a.map, a.buffer_mm)?;
-    let crc = echoloc::map::crc32(&blob);
+    let loaded = load_map_with_field(&a.map, a.buffer_mm)?;
+    let (map, blob, crc) = (loaded.view()?, loaded.blob(), loaded.crc());
     // The scenario for the board.
     let (header, records) = crate::scenario::from_log(&log, &mounts, crc, given)
         .map_err(|e| LabError(format!("{}: {e}", source.display())))?;
@@ -150,17 +150,14 @@ pub fn board_cmd(a: &BoardArgs) -> Result<String, LabError> {
         .map_err(|e| LabError(format!("the scenario: {e}")))?;
     // The host's replay of the same log.
     let steps = steps_of_log(&log);
-    let trace = filters::with_field(&blob, |field| {
-        filters::run(&map, field, &mounts, &start(&log, given), &steps, &mut |_| {})
-    })
-    .and_then(|r| r)
-    .map_err(|e| LabError(format!("{}: {e}", source.display())))?;
+    let trace = filters::run(&map, map.field(), &mounts, &start(&log, given), &steps, &mut |_| {})
+        .map_err(|e| LabError(format!("{}: {e}", source.display())))?;
     let host = report(&trace, None);
     // The board.
     let dir = std::env::temp_dir().join(format!("echoloc-board-{}", std::process::id()));
     std::fs::create_dir_all(&dir).map_err(|e| LabError(format!("{}: {e}", dir.display())))?;
     let (map_file, scn_file) = (dir.join("map.map"), dir.join("run.scn"));
-    let written = std::fs::write(&map_file, &blob).and_then(|_| std::fs::write(&scn_file, &scn));
+    let written = std::fs::write(&map_file, blob).and_then(|_| std::fs::write(&scn_file, &scn));
     let out = written.and_then(|_| {
         Command::new("timeout")
             .arg(a.timeout_s.to_string())

@@ -37,7 +37,7 @@
 use std::collections::BTreeMap;
 use std::io::Cursor;
 
-use echoloc::map::{MapSource, StandardMap};
+use echoloc::map::MapSource;
 use echoloc::predict::Mount;
 use echoloc::referencing::Reading;
 use serde_json::{json, Value};
@@ -281,8 +281,8 @@ fn arc(x: f64, y: f64, a: f64, h: f64, r: f64) -> Vec<(f64, f64)> {
 /// Records a run: the map, each reading's poses, covariance, sensor window
 /// and verdict, and the lost/tracking changes. `steps` and `trace` are the
 /// filters' input and output; `unmapped` the simulator's clutter outlines (m).
-pub fn record(
-    map: &StandardMap,
+pub fn record<M: MapSource>(
+    map: &M,
     mounts: &[Mount],
     steps: &[Step],
     trace: &Trace,

@@ -8,7 +8,7 @@ use echoloc::credence::gaussian::GaussianLobe;
 use echoloc::credence::net::CredenceNet;
 use echoloc::credence::Credence;
 use echoloc::geometry::{Point, COORD_MAX};
-use echoloc::map::StandardMap;
+use echoloc::map::MapSource;
 use echoloc::predict::{nearest_in_window, place_sensor, predict, Mount, Pose, PredictParams};
 use echoloc::window::{Strategy, Window, WindowParams};
 use serde_json::{json, Value};
@@ -154,32 +154,15 @@ fn triple(s: &str, what: &str) -> Result<(f64, f64, f64), LabError> {
     Ok((x, y, d.rem_euclid(360.0)))
 }
 
-/// Loads MAP in any of its three forms into the firmware's map.
-pub fn load_map(path: &Path, buffer_mm: u32) -> Result<Box<StandardMap>, LabError> {
-    Ok(load_map_and_blob_with(path, buffer_mm, None)?.0)
+/// Loads MAP in any of its forms, without a localization field (none is
+/// needed to predict): [`crate::map::load::load`].
+pub fn load_map(path: &Path, buffer_mm: u32) -> Result<map::LoadedMap, LabError> {
+    map::load::load(path, &map::LoadOptions::buffer(buffer_mm).without_field())
 }
 
-/// [`load_map`], with the blob the map was loaded from (read, or built here).
-pub fn load_map_and_blob(path: &Path, buffer_mm: u32) -> Result<(Box<StandardMap>, Vec<u8>), LabError> {
-    load_map_and_blob_with(path, buffer_mm, Some(map::FieldOptions::default()))
-}
-
-/// [`load_map_and_blob`], a source compiled with the localization field
-/// `field` (`None`: without one; a blob is read as it is).
-pub fn load_map_and_blob_with(
-    path: &Path,
-    buffer_mm: u32,
-    field: Option<map::FieldOptions>,
-) -> Result<(Box<StandardMap>, Vec<u8>), LabError> {
-    let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
-    if ext == "map" {
-        return map::load_blob(path);
-    }
-    let opt = map::ImportOptions { field, ..map::ImportOptions::default() };
-    let src = map::read_source(path, &opt)?;
-    let blob =
-        map::compile_source(&src, buffer_mm, 1000, &opt).map_err(|e| LabError(format!("{}: {e}", path.display())))?.0;
-    Ok((map::blob_to_map(&blob, path)?, blob))
+/// Loads MAP in any of its forms with the default localization field.
+pub fn load_map_with_field(path: &Path, buffer_mm: u32) -> Result<map::LoadedMap, LabError> {
+    map::load::load(path, &map::LoadOptions::buffer(buffer_mm))
 }
 
 /// The ring of `--ring SPEC` ([`crate::ring::load`]), its errors naming the option.
@@ -188,7 +171,8 @@ pub fn ring_mounts(spec: &str) -> Result<Vec<Mount>, LabError> {
 }
 
 pub fn predict_cmd(a: &PredictArgs) -> Result<String, LabError> {
-    let map = load_map(&a.map, a.buffer_mm)?;
+    let loaded = load_map(&a.map, a.buffer_mm)?;
+    let map = loaded.view()?;
     let window = WindowParams {
         r_min_mm: a.rmin_mm,
         r_max_mm: a.rmax_mm,
@@ -232,7 +216,7 @@ pub fn predict_cmd(a: &PredictArgs) -> Result<String, LabError> {
             LabError(format!("sensor {i} at ({}, {}) m: {e}", f64::from(apex.x) / 1000.0, f64::from(apex.y) / 1000.0))
         })?;
         let line = if a.geometric {
-            let n = nearest_in_window(&*map, &w).map_err(|e| LabError(format!("sensor {i}: {e}")))?;
+            let n = nearest_in_window(&map, &w).map_err(|e| LabError(format!("sensor {i}: {e}")))?;
             match n {
                 Some(n) => {
                     let (dx, dy) = (n.point.0 - apex.x as f64, n.point.1 - apex.y as f64);
@@ -246,7 +230,7 @@ pub fn predict_cmd(a: &PredictArgs) -> Result<String, LabError> {
                 }
             }
         } else {
-            let (p, _) = predict(&*map, &w, &params, &*model).map_err(|e| LabError(format!("sensor {i}: {e}")))?;
+            let (p, _) = predict(&map, &w, &params, &*model).map_err(|e| LabError(format!("sensor {i}: {e}")))?;
             match p {
                 Some(p) => json!({"sensor": i, "range_m": p.range_mm as f64 / 1000.0, "kappa": p.kappa.to_num::<f64>(),
                                   "theta_deg": p.theta_mdeg as f64 / 1000.0, "delta_deg": p.delta_mdeg as f64 / 1000.0,

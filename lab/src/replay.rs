@@ -12,7 +12,7 @@ use serde_json::json;
 
 use crate::log::{Log, Row};
 use crate::map::LabError;
-use crate::predict::{load_map_and_blob, ring_mounts};
+use crate::predict::{load_map_with_field, ring_mounts};
 use crate::simulate::filters::{self, Start, Step};
 use crate::simulate::{check_writable, error_plot_path, figures, motion_f64, report, write_all, START_SIGMA};
 
@@ -167,13 +167,13 @@ pub fn replay_cmd(a: &ReplayArgs) -> Result<String, LabError> {
         }
         (None, None) => return Err(LabError("give --log or --bag".into())),
     };
-    let (map, blob) = load_map_and_blob(&a.map, a.buffer_mm)?;
+    let loaded = load_map_with_field(&a.map, a.buffer_mm)?;
+    let map = loaded.view()?;
     let steps = steps_of_log(&log);
     let mut how = start(&log, given);
     how.seed = a.seed;
     crate::simulate::apply_start(&mut how, arg);
-    let trace = filters::with_field(&blob, |field| filters::run(&map, field, &mounts, &how, &steps, &mut |_| {}))
-        .and_then(|r| r)
+    let trace = filters::run(&map, map.field(), &mounts, &how, &steps, &mut |_| {})
         .map_err(|e| LabError(format!("{}: {e}", source.display())))?;
     let mut r = report(&trace, None);
     if let Some(o) = r.as_object_mut() {

@@ -14,7 +14,7 @@ use serde_json::json;
 
 use crate::log::{Log, Row};
 use crate::map::{write_atomically, LabError};
-use crate::predict::{load_map_and_blob, ring_mounts};
+use crate::predict::{load_map_with_field, ring_mounts};
 use crate::replay::{cycles, parse_pose, start};
 use crate::simulate::world::FiringPlan;
 use crate::simulate::{check_writable, filters, motion_f64, report, start_of, BOUNDS};
@@ -87,18 +87,16 @@ fn replay(a: &ReplayArgs) -> Result<String, LabError> {
     let bytes = std::fs::read(&a.scenario).map_err(|e| LabError(format!("{}: {e}", a.scenario.display())))?;
     let s = Scenario::parse(&bytes)
         .map_err(|e| LabError(format!("{}: not a valid scenario: {e}", a.scenario.display())))?;
-    let (map, blob) = load_map_and_blob(&a.map, a.buffer_mm)?;
-    s.check_map(echoloc::map::crc32(&blob)).map_err(|e| {
+    let loaded = load_map_with_field(&a.map, a.buffer_mm)?;
+    let map = loaded.view()?;
+    s.check_map(loaded.crc()).map_err(|e| {
         LabError(format!("{}: made on another map than {} (MapMismatch): {e}", a.scenario.display(), a.map.display()))
     })?;
     let mounts: Vec<Mount> = (0..s.transducers()).filter_map(|i| s.mount(i)).collect();
     let records: Vec<Record> = s.records().collect();
     let steps = filters::steps_of_records(s.header(), &records).map_err(LabError)?;
-    let trace = filters::with_field(&blob, |field| {
-        filters::run(&map, field, &mounts, &start_of(s.header()), &steps, &mut |_| {})
-    })
-    .and_then(|r| r)
-    .map_err(|e| LabError(format!("{}: {e}", a.scenario.display())))?;
+    let trace = filters::run(&map, map.field(), &mounts, &start_of(s.header()), &steps, &mut |_| {})
+        .map_err(|e| LabError(format!("{}: {e}", a.scenario.display())))?;
     let mut r = report(&trace, None);
     if let Some(o) = r.as_object_mut() {
         o.insert("localization".into(), crate::simulate::localization::report(&trace, &[]));
@@ -116,9 +114,9 @@ fn convert(
     let given = a.initial_pose.as_deref().map(|s| parse_pose(s, "--initial-pose")).transpose()?;
     let mounts = ring_mounts(&a.ring)?;
     let log = crate::log::read_file(log_path, mounts.len())?;
-    let (_, blob) = load_map_and_blob(map, a.buffer_mm)?;
-    let (mut header, records) = from_log(&log, &mounts, echoloc::map::crc32(&blob), given)
-        .map_err(|e| LabError(format!("{}: {e}", log_path.display())))?;
+    let loaded = load_map_with_field(map, a.buffer_mm)?;
+    let (mut header, records) =
+        from_log(&log, &mounts, loaded.crc(), given).map_err(|e| LabError(format!("{}: {e}", log_path.display())))?;
     if let Some(b) = &a.bounds {
         let v: Vec<f32> = b.split(',').filter_map(|t| t.trim().parse().ok()).collect();
         match v[..] {

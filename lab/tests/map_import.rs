@@ -96,9 +96,14 @@ fn bad_inputs_fail_clearly_and_write_nothing() {
 }
 
 fn squares(n: usize) -> String {
+    squares_at(n, 2.0)
+}
+
+/// `n` unit squares, 150 to a row, `pitch` m apart.
+fn squares_at(n: usize, pitch: f64) -> String {
     let mut feats = Vec::new();
     for i in 0..n {
-        let (x, y) = ((i % 150) as f64 * 2.0, (i / 150) as f64 * 2.0);
+        let (x, y) = ((i % 150) as f64 * pitch, (i / 150) as f64 * pitch);
         feats.push(format!(
             r#"{{"type":"Feature","geometry":{{"type":"Polygon","coordinates":[[[{x},{y}],[{},{y}],[{},{}],[{x},{}],[{x},{y}]]]}}}}"#,
             x + 1.0,
@@ -151,4 +156,53 @@ fn a_wall_with_a_repeated_first_position_is_its_own_obstacle() {
     assert_eq!(info["polygons"], 2, "two obstacles: {info}");
     assert_eq!(info["convex_pieces"], 2);
     import_fails("allsame.geojson", r#"{"type":"LineString","coordinates":[[1,1],[1,1],[1,1]]}"#, "has no segment");
+}
+
+#[test]
+fn every_command_takes_a_map_beyond_the_old_ram_map() {
+    // Issue #35: predict, simulate and replay refused any map of more than
+    // 1 024 convex pieces ("Capacity(Pieces)"), which `map import` makes.
+    let input = tmp("big-cmds.geojson");
+    // 2 m gaps: room for the simulator's route.
+    std::fs::write(&input, squares_at(1100, 3.0)).unwrap();
+    let blob = tmp("big-cmds.map");
+    let o = lab().args(["map", "import"]).arg(&input).arg("-o").arg(&blob).output().unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    // The robot in the gaps between the squares: both forms predict the
+    // same, and each echo point lies on a square's outline (sides at
+    // x, y = 3k and 3k + 1 m), a fact of the input, not of the predictor.
+    let mut outputs = Vec::new();
+    for map in [&blob, &input] {
+        let o = lab().args(["predict", "--pose", "2,2,20", "--map"]).arg(map).output().unwrap();
+        assert!(o.status.success(), "{}: {}", map.display(), String::from_utf8_lossy(&o.stderr));
+        outputs.push(o.stdout);
+    }
+    assert_eq!(outputs[0], outputs[1]);
+    let lines: Vec<serde_json::Value> =
+        String::from_utf8_lossy(&outputs[0]).lines().map(|l| serde_json::from_str(l).unwrap()).collect();
+    assert_eq!(lines.len(), 16);
+    let seen: Vec<&serde_json::Value> = lines.iter().filter(|l| !l["range_m"].is_null()).collect();
+    assert!(seen.len() >= 4, "{lines:?}");
+    for l in seen {
+        let (x, y) = (l["point"][0].as_f64().unwrap(), l["point"][1].as_f64().unwrap());
+        let on_side = |v: f64| (v - v.round()).abs() < 1e-3;
+        let inside = |v: f64| v.rem_euclid(3.0) <= 1.0 + 1e-3;
+        let on_side = |v: f64| on_side(v) && inside(v);
+        assert!((on_side(x) && inside(y)) || (on_side(y) && inside(x)), "{l}");
+    }
+    let log = tmp("big-cmds.csv");
+    let o = lab()
+        .args(["simulate", "--json", "--distance-m", "6", "--inconsistent", "0", "--map"])
+        .arg(&blob)
+        .arg("--log")
+        .arg(&log)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let sim: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let o = lab().args(["replay", "--json", "--map"]).arg(&blob).arg("--log").arg(&log).output().unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let rep: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(rep["readings"], sim["readings"]);
+    assert!(sim["readings"].as_u64().unwrap() > 16);
 }

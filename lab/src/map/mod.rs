@@ -12,6 +12,7 @@ pub mod build;
 pub mod contour;
 pub mod field;
 pub mod geojson;
+pub mod load;
 pub mod render;
 pub mod ros;
 pub mod simplify;
@@ -28,6 +29,7 @@ use echoloc::map::{MapSource, MapView, StandardMap};
 
 pub use build::{build_map, build_map_with, MapSummary, Shape};
 pub use field::FieldOptions;
+pub use load::{LoadOptions, LoadedMap, MapKind};
 
 /// Import defaults, shared by `map import` and the other commands that read
 /// a map source.
@@ -255,12 +257,7 @@ pub fn import(
         summary.extra.extend(src.extra.clone());
         Ok((blob, summary, src))
     };
-    std::thread::Builder::new()
-        .stack_size(256 << 20)
-        .spawn(work)
-        .map_err(|e| ImportError::Io { path: path.clone(), source: e })?
-        .join()
-        .unwrap_or_else(|_| Err(ImportError::Content { path, problem: "internal error: the import panicked".into() }))
+    load::on_big_stack(work, |problem| ImportError::Content { path: path.clone(), problem })
 }
 
 pub fn run(cmd: MapCmd) -> Result<String, LabError> {
@@ -347,12 +344,6 @@ pub fn run(cmd: MapCmd) -> Result<String, LabError> {
             Ok(serde_json::json!({ "out": out.display().to_string(), "bytes": png.len() }).to_string())
         }
     }
-}
-
-/// Reads a blob file and loads it as the firmware does; also its bytes.
-pub fn load_blob(path: &Path) -> Result<(Box<StandardMap>, Vec<u8>), LabError> {
-    let bytes = std::fs::read(path).map_err(|e| ImportError::Io { path: path.to_path_buf(), source: e })?;
-    Ok((blob_to_map(&bytes, path)?, bytes))
 }
 
 /// Reads a map file into aligned bytes, ready for [`view_of`].

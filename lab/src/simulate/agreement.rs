@@ -4,7 +4,7 @@
 //! construction: the two share no geometry code (DESIGN §4.7).
 
 use echoloc::credence::net::CredenceNet;
-use echoloc::map::StandardMap;
+use echoloc::map::MapSource;
 use echoloc::predict::{predict_mount, Mount, Pose, Prediction};
 use serde_json::{json, Value};
 
@@ -86,8 +86,8 @@ impl Agreement {
 /// Predicts every clean reading at its true pose and counts agreement;
 /// `kappa_min` is the confidence mark; `nearer_check`: whether predictions
 /// carry the nearer-surface check (without it none is ambiguous).
-pub fn measure(
-    map: &StandardMap,
+pub fn measure<M: MapSource>(
+    map: &M,
     mounts: &[Mount],
     readings: &[SimReading],
     kappa_min: f32,

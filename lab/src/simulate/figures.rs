@@ -3,7 +3,7 @@
 //! clutter), and the position and heading errors over time. Legends sit in
 //! their own panels, clear of the data.
 
-use echoloc::map::StandardMap;
+use echoloc::map::MapSource;
 use plotters::prelude::*;
 
 use super::filters::{Methods, Trace};
@@ -40,13 +40,13 @@ type ErrorAt = (f64, f64, f64);
 
 /// The two PNGs: paths on the map (with the outlines of `unmapped`
 /// objects, m), errors over time (against the true pose, where known).
-pub fn draw(map: &StandardMap, unmapped: &[Vec<(f64, f64)>], t: &Trace) -> (Vec<u8>, Vec<u8>) {
+pub fn draw<M: MapSource>(map: &M, unmapped: &[Vec<(f64, f64)>], t: &Trace) -> (Vec<u8>, Vec<u8>) {
     draw_as(map, unmapped, t, Format::Png).unwrap_or_default()
 }
 
 /// [`draw`] in `format`.
-pub fn draw_as(
-    map: &StandardMap,
+pub fn draw_as<M: MapSource>(
+    map: &M,
     unmapped: &[Vec<(f64, f64)>],
     t: &Trace,
     format: Format,
@@ -64,14 +64,14 @@ fn track(t: &Trace, m: Option<Methods>) -> Vec<(f64, f64)> {
     v.iter().map(|p| (p[0], p[1])).collect()
 }
 
-struct Paths<'a> {
-    layers: MapLayers<'a, StandardMap>,
+struct Paths<'a, M: MapSource> {
+    layers: MapLayers<'a, M>,
     unmapped: &'a [Vec<(f64, f64)>],
     trace: &'a Trace,
     size: (u32, u32),
 }
 
-impl Figure for Paths<'_> {
+impl<M: MapSource> Figure for Paths<'_, M> {
     fn size(&self) -> (u32, u32) {
         self.size
     }
@@ -118,7 +118,7 @@ impl Figure for Paths<'_> {
     }
 }
 
-fn paths(map: &StandardMap, unmapped: &[Vec<(f64, f64)>], t: &Trace, format: Format) -> Result<Vec<u8>, String> {
+fn paths<M: MapSource>(map: &M, unmapped: &[Vec<(f64, f64)>], t: &Trace, format: Format) -> Result<Vec<u8>, String> {
     let mut layers = MapLayers::new(map, None, Unknown::Free);
     // The paths may leave the map's bounds (a diverged filter): show them.
     for (_, _, m) in SERIES {

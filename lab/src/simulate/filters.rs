@@ -7,7 +7,7 @@
 use echoloc::credence::net::CredenceNet;
 use echoloc::driver::SpeedOfSound;
 use echoloc::localize::{self, Localizer, LocalizerConfig, Mode};
-use echoloc::map::{FieldView, StandardMap};
+use echoloc::map::{FieldView, MapSource};
 use echoloc::predict::{Mount, PredictParams};
 use echoloc::referencing::calibration::{CalibrationConfig, HeadingBias};
 use echoloc::referencing::{
@@ -308,14 +308,6 @@ pub fn steps_of_records(header: &Header, records: &[Record]) -> Result<Vec<Step>
         .collect())
 }
 
-/// The localization field of a compiled map's `blob` (empty when it has
-/// none), for `f`.
-pub fn with_field<R>(blob: &[u8], f: impl FnOnce(&FieldView<'_>) -> R) -> Result<R, String> {
-    let a = crate::map::AlignedBytes::new(blob);
-    let v = echoloc::map::MapView::new(a.bytes()).map_err(|e| format!("the map's blob: {e:?}"))?;
-    Ok(f(v.field()))
-}
-
 /// The prediction settings of the boards: the Polaroid 6500's window on the
 /// map's buffer (`buffer_mm`).
 pub fn predict_params(buffer_mm: u32) -> PredictParams {
@@ -345,8 +337,8 @@ fn f64x3(v: [f32; 3]) -> [f64; 3] {
 /// Runs every step through the three estimates; the EKF inside the
 /// localizer (with [`PARTICLES`] particles, or none when `start.particles`
 /// is off) on the map's localization `field`.
-pub fn run(
-    map: &StandardMap,
+pub fn run<M: MapSource>(
+    map: &M,
     field: &FieldView<'_>,
     mounts: &[Mount],
     start: &Start,
@@ -354,14 +346,14 @@ pub fn run(
     progress: &mut dyn FnMut(f64),
 ) -> Result<Trace, String> {
     if start.particles {
-        run_with::<PARTICLES>(map, field, mounts, start, steps, progress)
+        run_with::<M, PARTICLES>(map, field, mounts, start, steps, progress)
     } else {
-        run_with::<0>(map, field, mounts, start, steps, progress)
+        run_with::<M, 0>(map, field, mounts, start, steps, progress)
     }
 }
 
-fn run_with<const N: usize>(
-    map: &StandardMap,
+fn run_with<M: MapSource, const N: usize>(
+    map: &M,
     field: &FieldView<'_>,
     mounts: &[Mount],
     start: &Start,

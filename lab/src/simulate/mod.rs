@@ -19,7 +19,7 @@ use echoloc::scenario::{self, Header, Record};
 use serde_json::{json, Value};
 
 use crate::map::{write_atomically, LabError};
-use crate::predict::{load_map_and_blob, ring_mounts};
+use crate::predict::{load_map_with_field, ring_mounts};
 use filters::{Methods, Trace};
 use world::{EchoSource, SimRun, WorldConfig};
 
@@ -144,8 +144,8 @@ pub fn simulate_cmd(a: &SimulateArgs) -> Result<String, LabError> {
             a.ring
         )));
     }
-    let (map, blob) = load_map_and_blob(&a.map, a.buffer_mm)?;
-    let map_crc = echoloc::map::crc32(&blob);
+    let loaded = load_map_with_field(&a.map, a.buffer_mm)?;
+    let (map, map_crc) = (loaded.view()?, loaded.crc());
     let mut cfg = WorldConfig::new(a.seed, a.distance_m, a.inconsistent, mounts.clone());
     cfg.kidnaps = kidnaps;
     let mut bar = Progress::new();
@@ -172,11 +172,8 @@ pub fn simulate_cmd(a: &SimulateArgs) -> Result<String, LabError> {
         ..start_of(&header)
     };
     apply_start(&mut start, start_arg);
-    let trace = filters::with_field(&blob, |field| {
-        filters::run(&map, field, &mounts, &start, &steps, &mut |f| bar.set(0.5 + 0.5 * f))
-    })
-    .and_then(|r| r)
-    .map_err(|e| LabError(format!("{}: {e}", a.map.display())))?;
+    let trace = filters::run(&map, map.field(), &mounts, &start, &steps, &mut |f| bar.set(0.5 + 0.5 * f))
+        .map_err(|e| LabError(format!("{}: {e}", a.map.display())))?;
     bar.finish();
     let mut report = report(&trace, Some(&run));
     let agreement = agreement::measure(&map, &mounts, &run.readings, AGREEMENT_KAPPA, !a.no_nearer_check);

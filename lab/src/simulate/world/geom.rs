@@ -1,7 +1,7 @@
 //! Plain geometry in metres: the map's true outlines read once, and the
 //! distances the route and clutter placement are checked with.
 
-use echoloc::map::{ObstacleKind, StandardMap};
+use echoloc::map::{MapSource, ObstacleKind};
 
 /// A point, m.
 pub type P = (f64, f64);
@@ -16,8 +16,8 @@ pub struct Outline {
 }
 
 /// The map's true pieces, in metres (read once; no map query is used).
-pub fn map_outlines(map: &StandardMap) -> Vec<Outline> {
-    map.pieces()
+pub fn map_outlines<M: MapSource>(map: &M) -> Vec<Outline> {
+    map.pieces_iter()
         .map(|p| Outline {
             obstacle: p.obstacle,
             pts: p.shape.vertices().iter().map(|v| (f64::from(v.x) / 1000.0, f64::from(v.y) / 1000.0)).collect(),
@@ -26,8 +26,8 @@ pub fn map_outlines(map: &StandardMap) -> Vec<Outline> {
 }
 
 /// The area of each map obstacle, m² (0 for walls).
-pub fn obstacle_areas(map: &StandardMap, outlines: &[Outline]) -> Vec<f64> {
-    let mut area = vec![0.0; map.obstacles().len()];
+pub fn obstacle_areas<M: MapSource>(map: &M, outlines: &[Outline]) -> Vec<f64> {
+    let mut area = vec![0.0; map.obstacle_count()];
     for o in outlines {
         if let Some(a) = area.get_mut(usize::from(o.obstacle)) {
             *a += polygon_area(&o.pts);
@@ -37,8 +37,8 @@ pub fn obstacle_areas(map: &StandardMap, outlines: &[Outline]) -> Vec<f64> {
 }
 
 /// Whether map obstacle `i` is a wall.
-pub fn is_wall_obstacle(map: &StandardMap, i: usize) -> bool {
-    map.obstacles().get(i).is_some_and(|o| o.kind == ObstacleKind::Wall)
+pub fn is_wall_obstacle<M: MapSource>(map: &M, i: usize) -> bool {
+    u16::try_from(i).ok().and_then(|i| map.obstacle(i)).is_some_and(|o| o.kind == ObstacleKind::Wall)
 }
 
 /// Signed area of a polygon (positive counter-clockwise), m²; 0 for a segment.

@@ -51,7 +51,7 @@ pub use run::{Clutter, CONSISTENT_FIXED_MM, CONSISTENT_FRACTION};
 pub use timing::FiringPlan;
 pub use truth::World;
 
-use echoloc::map::StandardMap;
+use echoloc::map::MapSource;
 
 /// How often progress is reported, in firings.
 const PROGRESS_EVERY: usize = 256;
@@ -59,8 +59,8 @@ const PROGRESS_EVERY: usize = 256;
 /// Simulates a run of `cfg` through `map`. `progress` is called now and then
 /// with the fraction done (0 to 1). Errors name what is wrong (a map path is
 /// the caller's to add).
-pub fn simulate_world(
-    map: &StandardMap,
+pub fn simulate_world<M: MapSource>(
+    map: &M,
     cfg: &WorldConfig,
     progress: &mut dyn FnMut(f64),
 ) -> Result<SimRun, WorldError> {

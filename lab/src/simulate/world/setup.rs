@@ -2,7 +2,7 @@
 //! parry scene, the route, the true motion and the odometry, the clutter
 //! candidates, the firing schedule.
 
-use echoloc::map::StandardMap;
+use echoloc::map::MapSource;
 
 use super::clutter::{Candidates, Ground};
 use super::config::{WorldConfig, WorldError};
@@ -73,7 +73,7 @@ pub struct Setup {
 
 impl Setup {
     /// Plans the route, drives it, draws the odometry and the clutter candidates.
-    pub fn new(map: &StandardMap, cfg: &WorldConfig) -> Result<Self, WorldError> {
+    pub fn new<M: MapSource>(map: &M, cfg: &WorldConfig) -> Result<Self, WorldError> {
         cfg.check()?;
         let outlines = map_outlines(map);
         let (lo, hi) = bbox(outlines.iter().flat_map(|o| o.pts.iter())).ok_or(WorldError::EmptyMap)?;
@@ -169,7 +169,7 @@ impl Setup {
         // Obstacles that touch the outside (free space reaching the grid's
         // border, other than the robot's own) are the building's shell.
         let outside = |k: usize| labels[k] != start && regions.get(labels[k] as usize).is_some_and(|r| r.border);
-        let mut shell = vec![false; map.obstacles().len()];
+        let mut shell = vec![false; map.obstacle_count()];
         for (k, &ob) in owner.iter().enumerate() {
             if ob != u32::MAX {
                 let (i, j) = grid.ij(k);

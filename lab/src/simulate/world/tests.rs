@@ -10,13 +10,12 @@ use echoloc::predict::{Mount, PIONEER16};
 use super::setup::Setup;
 use super::*;
 
-/// Loads a map once per test binary (splitting a ROS map's polygons needs a big stack).
+/// Loads a map once per test binary, into the host's map (the world takes any map source).
 fn load(path: &'static str) -> StandardMap {
-    let h = std::thread::Builder::new()
-        .stack_size(256 << 20)
-        .spawn(move || crate::predict::load_map(Path::new(path), 100).map(|m| *m))
-        .expect("thread");
-    h.join().expect("loader panicked").unwrap_or_else(|e| panic!("{path}: {e}"))
+    let loaded = crate::predict::load_map(Path::new(path), 100).unwrap_or_else(|e| panic!("{path}: {e}"));
+    let mut m = StandardMap::new();
+    m.load(loaded.blob()).unwrap_or_else(|e| panic!("{path}: {e:?}"));
+    m
 }
 
 fn depot() -> &'static StandardMap {
