@@ -35,7 +35,7 @@ use std::path::{Path, PathBuf};
 
 use echoloc::predict::Mount;
 
-use crate::log::{Row, MAX_HEADING_STEP_RAD, MAX_RANGE_MM};
+use crate::log::{turn_too_fast, Row, MAX_RANGE_MM};
 use msgs::{decode, types};
 use source::{Messages, Stored};
 
@@ -170,8 +170,8 @@ pub enum MessageProblem {
     NoFrame,
     /// Its frame names no transducer of the ring.
     UnknownFrame { frame: String },
-    /// The odometry turns by more than a quarter turn between two readings.
-    HeadingJump { from: f64, to: f64 },
+    /// The odometry turns faster than any robot between two readings ([`turn_too_fast`]).
+    HeadingJump { from: f64, to: f64, dt_s: f64 },
 }
 
 impl fmt::Display for MessageProblem {
@@ -208,10 +208,10 @@ impl fmt::Display for MessageProblem {
             }
             Self::NoFrame => write!(f, "header.frame_id is empty: which transducer is it?"),
             Self::UnknownFrame { frame } => write!(f, "frame {frame:?} is not one of the ring's"),
-            Self::HeadingJump { from, to } => write!(
+            Self::HeadingJump { from, to, dt_s } => write!(
                 f,
-                "the odometry turns from {from:.4} to {to:.4} rad between two readings, more than a quarter turn: \
-                 not odometry (a reset?)"
+                "the odometry turns from {from:.4} to {to:.4} rad in {dt_s} s between two readings, faster than any \
+                 robot turns (a full turn a second): not odometry (a reset?)"
             ),
         }
     }
@@ -739,13 +739,15 @@ pub fn from_messages(m: &Messages, o: &Options) -> Result<Bag, BagError> {
             continue;
         };
         let reference = reference.as_ref().and_then(|t| t.at(r.stamp, REFERENCE_MAX_GAP_NS));
-        if let Some(prev) = rows.last().map(|p: &Row| p.odometry[2]) {
-            if wrap(odometry[2] - prev).abs() > MAX_HEADING_STEP_RAD {
+        // A quaternion's heading is wrapped: the turn is the short way.
+        if let Some((prev, t0)) = rows.last().map(|p: &Row| (p.odometry[2], p.time_s)) {
+            let dt_s = r.stamp as f64 / 1e9 - t0;
+            if turn_too_fast(wrap(odometry[2] - prev), dt_s) {
                 return Err(BagError::Message {
                     topic: used.odometry.clone(),
                     index: 0,
                     stamp_s: Some(r.stamp as f64 / 1e9),
-                    problem: MessageProblem::HeadingJump { from: prev, to: odometry[2] },
+                    problem: MessageProblem::HeadingJump { from: prev, to: odometry[2], dt_s },
                 });
             }
         }

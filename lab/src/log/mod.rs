@@ -35,11 +35,13 @@ use std::fmt;
 pub const COLUMNS: [&str; 6] = ["time_s", "transducer", "range_mm", "odom_x_m", "odom_y_m", "odom_theta_rad"];
 /// The reference pose's columns, all three or none.
 pub const REFERENCE_COLUMNS: [&str; 3] = ["ref_x_m", "ref_y_m", "ref_theta_rad"];
-/// Largest heading change of the odometry between two rows, rad. Beyond a
-/// quarter turn, a cumulative heading sampled this sparsely no longer says
-/// which way the robot turned: such a step is not odometry (a reset, a
-/// unit mistake, degrees logged as radians).
-pub const MAX_HEADING_STEP_RAD: f64 = std::f64::consts::FRAC_PI_2;
+/// Fastest the odometry's heading may turn between two rows, rad/s: a full
+/// turn a second, beyond any wheeled robot (a Pioneer turns at most 300°/s,
+/// a TurtleBot 3 160°/s). See [`turn_too_fast`].
+pub const MAX_TURN_RATE_RAD_S: f64 = std::f64::consts::TAU;
+/// The least time a turn is measured over, s: rows of one whole-ring
+/// reading share a time, and may still carry odometry a few firings apart.
+pub const TURN_RATE_MIN_DT_S: f64 = 0.1;
 /// Largest range a row may give, mm (100 m: beyond any sonar).
 pub const MAX_RANGE_MM: f64 = 100_000.0;
 
@@ -136,12 +138,16 @@ pub enum Problem {
         /// The previous row's, s.
         previous_s: f64,
     },
-    /// The odometry heading turns by more than [`MAX_HEADING_STEP_RAD`] since the previous row.
+    /// The odometry heading turns faster than [`MAX_TURN_RATE_RAD_S`] since the previous row.
     HeadingJump {
         /// The previous row's θ, rad.
         from: f64,
         /// This row's θ, rad.
         to: f64,
+        /// Time between the two rows, s.
+        dt_s: f64,
+        /// The turn, rad (wrapped, or as logged in a cumulative log: [`heading_step`]).
+        turn: f64,
     },
     /// One or two of a row's three reference cells are empty.
     PartialReference,
@@ -186,11 +192,11 @@ impl fmt::Display for LogError {
                     "time_s {time_s} is earlier than the row before it ({previous_s}): rows must be in time order"
                 )
             }
-            Problem::HeadingJump { from, to } => write!(
+            Problem::HeadingJump { from, to, dt_s, turn } => write!(
                 f,
-                "odom_theta_rad jumps from {from} to {to}, {:.3} rad, more than a quarter turn between two readings: \
-                 that is not odometry (a reset, or degrees logged as radians?)",
-                wrap(to - from).abs()
+                "odom_theta_rad goes from {from} to {to}, a turn of {:.3} rad in {dt_s} s, faster than any robot turns \
+                 (a full turn a second): that is not odometry (a reset, or degrees logged as radians?)",
+                turn.abs()
             ),
             Problem::PartialReference => {
                 write!(f, "the reference pose needs all three cells {} or none", REFERENCE_COLUMNS.join(","))
@@ -327,17 +333,59 @@ pub fn read(text: &str, ring: usize) -> Result<Log, LogError> {
             if row.time_s < prev.time_s {
                 return Err(err(Problem::OutOfOrder { time_s: row.time_s, previous_s: prev.time_s }));
             }
-            let (from, to) = (prev.odometry[2], row.odometry[2]);
-            if wrap(to - from).abs() > MAX_HEADING_STEP_RAD {
-                return Err(err(Problem::HeadingJump { from, to }));
-            }
         }
         rows.push(row);
     }
     if rows.is_empty() {
         return Err(LogError { line: 0, problem: Problem::NoRows });
     }
+    let wrapped = headings_wrapped(rows.iter().map(|r| r.odometry[2]));
+    for w in rows.windows(2) {
+        let (from, to, dt_s) = (w[0].odometry[2], w[1].odometry[2], w[1].time_s - w[0].time_s);
+        let turn = heading_step(from, to, wrapped);
+        if turn_too_fast(turn, dt_s) {
+            return Err(LogError { line: w[1].line, problem: Problem::HeadingJump { from, to, dt_s, turn } });
+        }
+    }
     Ok(Log { rows })
+}
+
+/// Whether a log's headings are wrapped: every one within one turn,
+/// [−π, π] or [0, 2π] (a hair of rounding allowed). A log whose heading
+/// leaves that range is cumulative, and its steps are read as logged.
+pub fn headings_wrapped(thetas: impl IntoIterator<Item = f64>) -> bool {
+    const EPS: f64 = 1e-3;
+    thetas.into_iter().all(|t| (-std::f64::consts::PI - EPS..=std::f64::consts::TAU + EPS).contains(&t))
+}
+
+/// The turn from heading `from` to `to`, rad: through the short way in a
+/// wrapped log, as logged in a cumulative one ([`headings_wrapped`]).
+pub fn heading_step(from: f64, to: f64, wrapped: bool) -> f64 {
+    if wrapped {
+        wrap(to - from)
+    } else {
+        to - from
+    }
+}
+
+/// The rule real odometry cannot break: a turn of `turn` rad in `dt_s`
+/// seconds (at least [`TURN_RATE_MIN_DT_S`]) is faster than
+/// [`MAX_TURN_RATE_RAD_S`]. No robot turns that fast, whatever its logging
+/// rate: a log with a whole-ring row a metre apart, turning 80° between
+/// them, passes. Degrees logged as radians break it as soon as the robot
+/// turns faster than 6.3°/s (57 times as fast in "radians"), or when the
+/// heading crosses ±180 (a cumulative "turn" of 360 rad); logged at 10 Hz,
+/// any turn of more than 36° in a step (a reset) breaks it too. What it
+/// cannot see: a degrees log whose heading never leaves ±3.14° reads as a
+/// wrapped radian log.
+///
+/// ```
+/// use echoloc_lab::log::turn_too_fast;
+/// assert!(!turn_too_fast(80f64.to_radians(), 2.5)); // a real log, a ring a metre
+/// assert!(turn_too_fast(80.0, 2.5)); // the same turn, degrees logged as radians
+/// ```
+pub fn turn_too_fast(turn: f64, dt_s: f64) -> bool {
+    turn.abs() > MAX_TURN_RATE_RAD_S * dt_s.max(TURN_RATE_MIN_DT_S)
 }
 
 /// Reads a log file for a ring of `ring` transducers; errors name the file and the line.
