@@ -88,6 +88,25 @@ pub enum MapCmd {
         #[arg(long, default_value_t = 1)]
         seed: u64,
     },
+    /// A ROS map_server occupancy grid (MAP.yaml and MAP.pgm) from a lidar
+    /// run's scans at their poses, by log-odds ray casting: the map a SLAM
+    /// user would make of the pass (docs/real-buildings.md).
+    FromScans {
+        /// The lidar run: a CARMEN log (FLASER, ROBOTLASER1), plain or gzip.
+        run: PathBuf,
+        /// Output map_server YAML; the PGM is written beside it.
+        #[arg(short = 'o', long = "out")]
+        out: PathBuf,
+        /// The part of the run to map, FROM:TO in scan indices (either end may be left out).
+        #[arg(long, default_value = ":")]
+        pass: String,
+        /// Cell size, m.
+        #[arg(long = "resolution-m", default_value_t = crate::lidar::grid::GridOptions::default().resolution_m)]
+        resolution_m: f64,
+        /// Beams are used up to this range, m (beyond, they clear cells up to it).
+        #[arg(long = "max-range-m", default_value_t = crate::lidar::grid::GridOptions::default().max_range_m)]
+        max_range_m: f64,
+    },
     /// Print the summary of a map blob after loading it exactly as the firmware does.
     Info {
         /// The blob.
@@ -303,6 +322,28 @@ pub fn run(cmd: MapCmd) -> Result<String, LabError> {
                 }
             }
             Ok(summary.to_json())
+        }
+        MapCmd::FromScans { run, out, pass, resolution_m, max_range_m } => {
+            let pass = crate::lidar::Pass::parse(&pass)?;
+            let scans = crate::lidar::read(&run)?.pass(pass)?;
+            let opt = crate::lidar::grid::GridOptions { resolution_m, max_range_m, ..Default::default() };
+            let g = crate::lidar::grid::build(&scans, &opt).map_err(|e| LabError(format!("{}: {e}", run.display())))?;
+            let image = crate::lidar::grid::write(&g, &out)?;
+            let (free, occupied, unknown) = g.counts();
+            Ok(serde_json::json!({
+                "run": run.display().to_string(),
+                "format": scans.format,
+                "pass": pass.to_string(),
+                "scans": scans.scans.len(),
+                "path_m": (scans.path_length_m() * 10.0).round() / 10.0,
+                "size_cells": [g.width, g.height],
+                "resolution_m": g.resolution,
+                "origin": [g.origin.0, g.origin.1],
+                "cells": {"free": free, "occupied": occupied, "unknown": unknown},
+                "yaml": out.display().to_string(),
+                "image": image.display().to_string(),
+            })
+            .to_string())
         }
         MapCmd::FieldCheck { map, robots, seed } => {
             let a = read_compiled(&map)?;
