@@ -330,24 +330,30 @@ impl fmt::Display for BagError {
 
 impl std::error::Error for BagError {}
 
-/// A planar pose, m, m, rad.
-type Pose2 = [f64; 3];
+// The helpers below are shared with the lidar's bag reader
+// (`crate::lidar::bag`): topics by type, decoding, /tf and /tf_static,
+// poses interpolated in time.
 
-fn compose(a: Pose2, b: Pose2) -> Pose2 {
+/// A planar pose, m, m, rad.
+pub(crate) type Pose2 = [f64; 3];
+
+/// `b` (a pose in `a`'s frame) in the frame `a` is in.
+pub(crate) fn compose(a: Pose2, b: Pose2) -> Pose2 {
     let (s, c) = a[2].sin_cos();
     [a[0] + c * b[0] - s * b[1], a[1] + s * b[0] + c * b[1], a[2] + b[2]]
 }
 
-fn wrap(a: f64) -> f64 {
+pub(crate) fn wrap(a: f64) -> f64 {
     crate::simulate::world::wrap(a)
 }
 
-fn strip(frame: &str) -> &str {
+/// A frame without tf1's leading slash.
+pub(crate) fn strip(frame: &str) -> &str {
     frame.strip_prefix('/').unwrap_or(frame)
 }
 
 /// A pose of a message: x, y and yaw, finite.
-fn pose2(p: &msgs::Pose) -> Option<Pose2> {
+pub(crate) fn pose2(p: &msgs::Pose) -> Option<Pose2> {
     let yaw = p.orientation.yaw()?;
     let v = [p.position.x, p.position.y, yaw];
     v.iter().all(|x| x.is_finite()).then_some(v)
@@ -355,14 +361,27 @@ fn pose2(p: &msgs::Pose) -> Option<Pose2> {
 
 /// A time series of poses, sorted by stamp (ns).
 #[derive(Clone, Debug, Default)]
-struct Track {
-    name: String,
+pub(crate) struct Track {
+    /// The topic, named in errors.
+    pub(crate) name: String,
     stamps: Vec<i64>,
     poses: Vec<Pose2>,
 }
 
 impl Track {
-    fn push(&mut self, index: usize, stamp: msgs::Time, pose: Option<Pose2>) -> Result<(), BagError> {
+    /// An empty track of topic `name`.
+    pub(crate) fn new(name: &str) -> Self {
+        Track { name: name.into(), ..Track::default() }
+    }
+
+    /// Whether it has no pose.
+    pub(crate) fn is_empty(&self) -> bool {
+        self.stamps.is_empty()
+    }
+
+    /// Adds message `index`'s pose at `stamp`, refusing a bad stamp or pose
+    /// and time going backwards; of two poses with one stamp the later is kept.
+    pub(crate) fn push(&mut self, index: usize, stamp: msgs::Time, pose: Option<Pose2>) -> Result<(), BagError> {
         let stamp_s = stamp.seconds();
         let err = |problem| BagError::Message { topic: self.name.clone(), index, stamp_s, problem };
         stamp_s.ok_or_else(|| err(MessageProblem::BadStamp))?;
@@ -391,7 +410,7 @@ impl Track {
     /// The pose at `t`: a message's own at its stamp, else interpolated
     /// linearly between the two around `t` (the heading along the shorter
     /// turn); `None` outside the track, or across a gap longer than `max_gap_ns`.
-    fn at(&self, t: i64, max_gap_ns: i64) -> Option<Pose2> {
+    pub(crate) fn at(&self, t: i64, max_gap_ns: i64) -> Option<Pose2> {
         let i = self.stamps.partition_point(|&s| s < t);
         if self.stamps.get(i) == Some(&t) {
             return Some(self.poses[i]);
@@ -436,15 +455,20 @@ fn frame_order(f: &str) -> (u64, String) {
     (digits.parse().unwrap_or(u64::MAX), f.to_string())
 }
 
-fn topics_of(m: &Messages) -> Vec<(String, String)> {
+pub(crate) fn topics_of(m: &Messages) -> Vec<(String, String)> {
     m.topics.values().map(|t| (t.name.clone(), t.ty.clone())).collect()
 }
 
-fn of_type<'a>(m: &'a Messages, ty: &str) -> Vec<&'a str> {
+pub(crate) fn of_type<'a>(m: &'a Messages, ty: &str) -> Vec<&'a str> {
     m.topics.values().filter(|t| t.ty == ty).map(|t| t.name.as_str()).collect()
 }
 
-fn named<'a>(m: &'a Messages, option: &'static str, topic: &str, expected: &[&str]) -> Result<&'a str, BagError> {
+pub(crate) fn named<'a>(
+    m: &'a Messages,
+    option: &'static str,
+    topic: &str,
+    expected: &[&str],
+) -> Result<&'a str, BagError> {
     let t = m.topics.get(topic).ok_or_else(|| BagError::NoSuchTopic {
         option,
         topic: topic.into(),
@@ -461,11 +485,11 @@ fn named<'a>(m: &'a Messages, option: &'static str, topic: &str, expected: &[&st
     Ok(t.name.as_str())
 }
 
-fn stored<'a>(m: &'a Messages, topic: &str) -> &'a [Stored] {
+pub(crate) fn stored<'a>(m: &'a Messages, topic: &str) -> &'a [Stored] {
     m.by_topic.get(topic).map_or(&[], Vec::as_slice)
 }
 
-fn decoded<'de, T: serde::Deserialize<'de>>(
+pub(crate) fn decoded<'de, T: serde::Deserialize<'de>>(
     topic: &str,
     index: usize,
     ty: &str,
@@ -475,7 +499,7 @@ fn decoded<'de, T: serde::Deserialize<'de>>(
 }
 
 /// Whether a topic's name says it is a ground truth.
-fn says_truth(name: &str) -> bool {
+pub(crate) fn says_truth(name: &str) -> bool {
     let n = name.to_ascii_lowercase();
     ["ground_truth", "groundtruth", "truth", "gt", "odom_gt", "base_pose_ground_truth"]
         .iter()
@@ -483,7 +507,7 @@ fn says_truth(name: &str) -> bool {
 }
 
 /// The last path segment of a topic.
-fn leaf(name: &str) -> &str {
+pub(crate) fn leaf(name: &str) -> &str {
     name.rsplit('/').next().unwrap_or(name)
 }
 
@@ -768,7 +792,7 @@ pub fn from_messages(m: &Messages, o: &Options) -> Result<Bag, BagError> {
 }
 
 /// `/tf_static`'s transforms: child → (parent, pose of child in parent).
-fn static_transforms(m: &Messages) -> Result<BTreeMap<String, (String, Pose2)>, BagError> {
+pub(crate) fn static_transforms(m: &Messages) -> Result<BTreeMap<String, (String, Pose2)>, BagError> {
     let mut out = BTreeMap::new();
     for (name, t) in &m.topics {
         if t.ty != types::TF || leaf(name) != "tf_static" {
@@ -793,7 +817,7 @@ fn static_transforms(m: &Messages) -> Result<BTreeMap<String, (String, Pose2)>, 
 }
 
 /// The pose of `frame` in `base` by following parents (at most 64 links).
-fn chain(statics: &BTreeMap<String, (String, Pose2)>, base: &str, frame: &str) -> Option<Pose2> {
+pub(crate) fn chain(statics: &BTreeMap<String, (String, Pose2)>, base: &str, frame: &str) -> Option<Pose2> {
     let mut pose = [0.0; 3];
     let mut at = frame.to_string();
     for _ in 0..64 {
@@ -807,12 +831,18 @@ fn chain(statics: &BTreeMap<String, (String, Pose2)>, base: &str, frame: &str) -
     None
 }
 
-fn odometry_track(m: &Messages, topic: &str) -> Result<Track, BagError> {
-    let mut t = Track { name: topic.into(), ..Track::default() };
+/// The poses of a topic of Odometry, PoseWithCovarianceStamped or PoseStamped.
+pub(crate) fn pose_track(m: &Messages, topic: &str) -> Result<Track, BagError> {
+    let mut t = Track::new(topic);
+    let ty = m.topics.get(topic).map_or("", |t| t.ty.as_str());
     for (index, s) in stored(m, topic).iter().enumerate() {
-        let (stamp, pose) = match m.topics[topic].ty.as_str() {
+        let (stamp, pose) = match ty {
             types::POSE_COV => {
                 let p: msgs::PoseWithCovarianceStamped = decoded(topic, index, types::POSE_COV, s)?;
+                (p.header.stamp, pose2(&p.pose))
+            }
+            types::POSE_STAMPED => {
+                let p: msgs::PoseStamped = decoded(topic, index, types::POSE_STAMPED, s)?;
                 (p.header.stamp, pose2(&p.pose))
             }
             _ => {
@@ -849,10 +879,25 @@ fn odometry(m: &Messages, o: &Options, used: &mut Used) -> Result<Track, BagErro
     };
     if let Some(topic) = topic {
         used.odometry = topic.into();
-        return odometry_track(m, topic);
+        return pose_track(m, topic);
     }
     // /tf odom -> base_link.
-    let mut t = Track { name: "/tf".into(), ..Track::default() };
+    let t = tf_track(m, &o.odom_frame, &o.base_frame)?;
+    if t.is_empty() {
+        return Err(BagError::NoOdometry {
+            topics: topics_of(m),
+            odom_frame: o.odom_frame.clone(),
+            base_frame: o.base_frame.clone(),
+        });
+    }
+    used.odometry = format!("{} ({} -> {})", t.name, o.odom_frame, o.base_frame);
+    Ok(t)
+}
+
+/// The transforms `parent` -> `child` on `/tf` (every topic named `tf`), in
+/// time; empty when there are none.
+pub(crate) fn tf_track(m: &Messages, parent: &str, child: &str) -> Result<Track, BagError> {
+    let mut t = Track::new("/tf");
     for (name, tt) in &m.topics {
         if tt.ty != types::TF || leaf(name) != "tf" {
             continue;
@@ -861,7 +906,7 @@ fn odometry(m: &Messages, o: &Options, used: &mut Used) -> Result<Track, BagErro
         for (index, s) in stored(m, name).iter().enumerate() {
             let tf: msgs::TfMessage = decoded(name, index, types::TF, s)?;
             for ts in tf.transforms {
-                if strip(&ts.header.frame_id) == o.odom_frame && strip(&ts.child_frame_id) == o.base_frame {
+                if strip(&ts.header.frame_id) == parent && strip(&ts.child_frame_id) == child {
                     let tr = ts.transform;
                     let pose = tr.rotation.yaw().map(|y| [tr.translation.x, tr.translation.y, y]);
                     t.push(index, ts.header.stamp, pose.filter(|p| p.iter().all(|v| v.is_finite())))?;
@@ -869,14 +914,6 @@ fn odometry(m: &Messages, o: &Options, used: &mut Used) -> Result<Track, BagErro
             }
         }
     }
-    if t.stamps.is_empty() {
-        return Err(BagError::NoOdometry {
-            topics: topics_of(m),
-            odom_frame: o.odom_frame.clone(),
-            base_frame: o.base_frame.clone(),
-        });
-    }
-    used.odometry = format!("{} ({} -> {})", t.name, o.odom_frame, o.base_frame);
     Ok(t)
 }
 
@@ -906,5 +943,5 @@ fn reference(m: &Messages, o: &Options, odom: &str, used: &mut Used) -> Result<O
     };
     let Some(topic) = topic else { return Ok(None) };
     used.reference = Some(topic.into());
-    odometry_track(m, topic).map(Some)
+    pose_track(m, topic).map(Some)
 }

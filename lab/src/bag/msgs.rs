@@ -1,4 +1,4 @@
-//! The ROS 2 messages a sonar bag carries, as far as echoloc reads them,
+//! The ROS 2 messages a sonar or lidar bag carries, as far as echoloc reads them,
 //! decoded from CDR (the `cdr` message encoding of rosbag2) by the
 //! `cdr-encoding` crate over serde.
 //!
@@ -22,6 +22,10 @@ pub mod types {
     pub const POSE_COV: &str = "geometry_msgs/msg/PoseWithCovarianceStamped";
     /// `tf2_msgs/msg/TFMessage`: `/tf` and `/tf_static`.
     pub const TF: &str = "tf2_msgs/msg/TFMessage";
+    /// `sensor_msgs/msg/LaserScan`: one sweep of a planar laser.
+    pub const LASER_SCAN: &str = "sensor_msgs/msg/LaserScan";
+    /// `geometry_msgs/msg/PoseStamped`: e.g. a SLAM's or a motion capture's pose.
+    pub const POSE_STAMPED: &str = "geometry_msgs/msg/PoseStamped";
 }
 
 /// `builtin_interfaces/msg/Time`.
@@ -130,6 +134,28 @@ pub struct PoseWithCovarianceStamped {
     pub pose: Pose,
 }
 
+/// `geometry_msgs/msg/PoseStamped`.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+pub struct PoseStamped {
+    pub header: Header,
+    pub pose: Pose,
+}
+
+/// `sensor_msgs/msg/LaserScan` up to its ranges (the intensities are not
+/// read). Angles in rad, ranges in m.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+pub struct LaserScan {
+    pub header: Header,
+    pub angle_min: f32,
+    pub angle_max: f32,
+    pub angle_increment: f32,
+    pub time_increment: f32,
+    pub scan_time: f32,
+    pub range_min: f32,
+    pub range_max: f32,
+    pub ranges: Vec<f32>,
+}
+
 /// `geometry_msgs/msg/Vector3`.
 #[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
 pub struct Vector3 {
@@ -215,6 +241,33 @@ mod tests {
         assert!(decode::<Range>(&b[..20]).is_err(), "a truncated message is an error");
         assert!(decode::<Range>(&[0, 1]).is_err());
         assert!(decode::<Range>(&[1, 2, 0, 0, 0, 0, 0, 0]).unwrap_err().contains("not plain CDR"));
+    }
+
+    /// A `sensor_msgs/msg/LaserScan` laid out by hand: the header, seven
+    /// f32s, then the ranges as a u32 count and f32s (the intensities after
+    /// them are not read).
+    #[test]
+    fn laser_scan_by_hand() {
+        let mut b = vec![0, 1, 0, 0];
+        b.extend(3i32.to_le_bytes()); // stamp.sec
+        b.extend(250_000_000u32.to_le_bytes()); // stamp.nanosec
+        b.extend(6u32.to_le_bytes()); // frame_id length with the NUL
+        b.extend(b"laser\0"); // body offset 12..18
+        b.extend([0, 0]); // pad to 20 for the f32s
+        for v in [-1.5f32, 1.5, 0.5, 0.0, 0.1, 0.05, 30.0] {
+            b.extend(v.to_le_bytes());
+        }
+        b.extend(3u32.to_le_bytes()); // ranges: 3
+        for v in [1.0f32, f32::INFINITY, 2.5] {
+            b.extend(v.to_le_bytes());
+        }
+        b.extend(0u32.to_le_bytes()); // intensities: none
+        let s: LaserScan = decode(&b).unwrap();
+        assert_eq!((s.header.frame_id.as_str(), s.header.stamp.seconds()), ("laser", Some(3.25)));
+        assert_eq!((s.angle_min, s.angle_increment, s.range_min, s.range_max), (-1.5, 0.5, 0.05, 30.0));
+        assert_eq!(s.ranges, vec![1.0, f32::INFINITY, 2.5]);
+        let cut = b.len() - 8;
+        assert!(decode::<LaserScan>(&b[..cut]).is_err(), "ranges cut short are an error");
     }
 
     #[test]

@@ -99,17 +99,23 @@ pub fn files(path: &Path) -> Result<Vec<PathBuf>, BagError> {
     Ok(info.relative_file_paths.iter().map(|f| path.join(f)).collect())
 }
 
-/// Whether echoloc reads messages of type `ty`.
-fn wanted(ty: &str) -> bool {
-    [types::RANGE, types::POINT_CLOUD, types::ODOMETRY, types::POSE_COV, types::TF].contains(&ty)
+/// The types a sonar bag's messages are read from.
+pub const SONAR_TYPES: &[&str] = &[types::RANGE, types::POINT_CLOUD, types::ODOMETRY, types::POSE_COV, types::TF];
+
+/// Reads every message of `files` of the types a sonar bag is read from
+/// ([`SONAR_TYPES`]), checking each chunk's CRC.
+pub fn read(files: &[PathBuf]) -> Result<Messages, BagError> {
+    read_types(files, SONAR_TYPES)
 }
 
-/// Reads every message of `files`, checking each chunk's CRC.
-pub fn read(files: &[PathBuf]) -> Result<Messages, BagError> {
+/// Reads every message of `files` whose type is one of `wanted` (the other
+/// topics are only counted: a laser's scans are large, and a sonar replay
+/// has no use for them), checking each chunk's CRC.
+pub fn read_types(files: &[PathBuf], wanted: &[&str]) -> Result<Messages, BagError> {
     let mut out = Messages::default();
     for f in files {
         let bytes = std::fs::read(f).map_err(|e| BagError::Io { path: f.clone(), problem: e.to_string() })?;
-        read_bytes(&bytes, f, &mut out)?;
+        read_bytes_of(&bytes, f, wanted, &mut out)?;
     }
     Ok(out)
 }
@@ -201,8 +207,15 @@ fn record_name(op: u8) -> &'static str {
     }
 }
 
-/// Adds the messages of one MCAP file's bytes to `out`; `path` names it in errors.
+/// Adds the messages of one MCAP file's bytes of [`SONAR_TYPES`] to `out`;
+/// `path` names it in errors.
 pub fn read_bytes(bytes: &[u8], path: &Path, out: &mut Messages) -> Result<(), BagError> {
+    read_bytes_of(bytes, path, SONAR_TYPES, out)
+}
+
+/// Adds the messages of one MCAP file's bytes whose type is one of `wanted`
+/// to `out`; `path` names it in errors.
+pub fn read_bytes_of(bytes: &[u8], path: &Path, wanted: &[&str], out: &mut Messages) -> Result<(), BagError> {
     check_framing(bytes).map_err(|problem| BagError::Unreadable { path: path.into(), problem })?;
     let unreadable = |e: mcap::McapError| BagError::Unreadable { path: path.into(), problem: e.to_string() };
     let stream = mcap::MessageStream::new_with_options(bytes, mcap::read::Options::ValidateChunkCrcs.into())
@@ -223,7 +236,7 @@ pub fn read_bytes(bytes: &[u8], path: &Path, out: &mut Messages) -> Result<(), B
             });
         }
         topic.count += 1;
-        if !wanted(&ty) {
+        if !wanted.contains(&ty.as_str()) {
             continue;
         }
         let schema_encoding = ch.schema.as_ref().map_or("", |s| s.encoding.as_str());
