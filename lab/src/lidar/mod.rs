@@ -1,6 +1,6 @@
 //! A lidar robot's run in (issue #35, DESIGN §4.9): the laser's scans at
 //! the robot's poses, read from CARMEN logs ([`carmen`]: `FLASER`,
-//! `ROBOTLASER1`, `ODOM`); the occupancy grid a SLAM user would make from
+//! `ROBOTLASER1`, `ODOM`) or ROS 2 bags ([`bag`]: `LaserScan`); the occupancy grid a SLAM user would make from
 //! one pass of it ([`grid`], `echoloc-lab map from-scans`). The sonar ring's
 //! readings derived from the scans live beside the simulator, in
 //! [`crate::from_scans`].
@@ -13,6 +13,7 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
+pub mod bag;
 pub mod carmen;
 pub mod grid;
 
@@ -149,6 +150,8 @@ pub enum LidarError {
     Pass(String),
     /// The file is of no kind this reads.
     Format { path: PathBuf, problem: String },
+    /// A ROS 2 bag that is not a lidar run ([`bag`]).
+    Bag { path: PathBuf, source: Box<bag::Error> },
 }
 
 impl fmt::Display for LidarError {
@@ -167,6 +170,9 @@ impl fmt::Display for LidarError {
             }
             LidarError::Pass(p) => write!(f, "--pass {p}"),
             LidarError::Format { path, problem } => write!(f, "{}: {problem}", path.display()),
+            // The bag's own file errors name the file (an MCAP inside the directory) already.
+            LidarError::Bag { source, .. } if source.names_file() => write!(f, "{source}"),
+            LidarError::Bag { path, source } => write!(f, "{}: {source}", path.display()),
         }
     }
 }
@@ -175,6 +181,7 @@ impl std::error::Error for LidarError {
     fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
         match self {
             LidarError::Io { source, .. } => Some(source),
+            LidarError::Bag { source, .. } => Some(source.as_ref()),
             _ => None,
         }
     }
@@ -186,9 +193,29 @@ impl From<LidarError> for crate::LabError {
     }
 }
 
-/// Reads a lidar run: a CARMEN log (plain, or gzip-compressed as Radish
-/// keeps them).
+/// Reads a lidar run: a ROS 2 bag with a laser (a rosbag2 directory, or a
+/// `.mcap` file; [`bag`], its topics found by type), else a CARMEN log
+/// (plain, or gzip-compressed as Radish keeps them).
 pub fn read(path: &Path) -> Result<LidarRun, LidarError> {
+    read_with(path, &bag::Options::default())
+}
+
+/// Whether `path` is a ROS 2 bag: a directory with rosbag2's `metadata.yaml`,
+/// or a file ending in `.mcap`.
+pub fn is_bag(path: &Path) -> bool {
+    if path.is_dir() {
+        return path.join("metadata.yaml").is_file();
+    }
+    path.extension().is_some_and(|e| e.eq_ignore_ascii_case("mcap"))
+}
+
+/// [`read`], a bag read with `options`.
+pub fn read_with(path: &Path, options: &bag::Options) -> Result<LidarRun, LidarError> {
+    if is_bag(path) {
+        return bag::read(path, options)
+            .map(|b| b.run)
+            .map_err(|e| LidarError::Bag { path: path.to_path_buf(), source: Box::new(e) });
+    }
     let raw = std::fs::read(path).map_err(|e| LidarError::Io { path: path.to_path_buf(), source: e })?;
     let text = if raw.starts_with(&[0x1f, 0x8b]) {
         let mut s = String::new();
