@@ -24,7 +24,7 @@ fn main() {
     let mounts = echoloc_lab::predict::ring_mounts("pioneer16").unwrap();
     let cfg = world::WorldConfig::new(seed, 40.0, inc, mounts.clone());
     let run = world::simulate_world(&map, &cfg, &mut |_| {}).unwrap();
-    let records = to_records(&run).unwrap();
+    let records = to_records(&run.readings).unwrap();
     let lookup = FieldLookup::new(map.field());
     let mut mc = McConfig::DEFAULT;
     let env = |k: &str, d: f32| std::env::var(k).ok().and_then(|v| v.parse().ok()).unwrap_or(d);

@@ -9,6 +9,7 @@
 //! | [`map`] | import ROS map_server grids ([`map::ros`]) and GeoJSON ([`map::geojson`]) into convex, buffered polygons; compile the firmware's map blob ([`map::import`], [`map::build_map`]); inspect, export, preview |
 //! | [`ring`] | rings: `pioneer16` or a JSON file of transducer mounts |
 //! | [`lidar`] | a lidar robot's run in (CARMEN logs), and the occupancy grid a SLAM user would make of it |
+//! | [`from_scans`] | a sonar run on real geometry: the ring's readings derived from a lidar run's scans, the ladder (`simulate --from-scans`) |
 //! | [`bag`] | ROS 2 bags (rosbag2 MCAP) read as a log: ranges, the ring from `/tf_static`, odometry, a reference (`docs/bags.md`) |
 //! | [`log`] | the plain CSV log a robot's logger writes (`docs/log.md`): read with line-numbered errors, write |
 //! | [`replay`] | a log through prediction, verdicts, the threshold method and the EKF; `echoloc-lab replay` |
@@ -56,6 +57,7 @@ pub mod board;
 pub mod credence;
 pub mod figure;
 pub mod foxglove;
+pub mod from_scans;
 pub mod lidar;
 pub mod link;
 pub mod log;

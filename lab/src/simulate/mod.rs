@@ -21,7 +21,7 @@ use serde_json::{json, Value};
 use crate::map::{write_atomically, LabError};
 use crate::predict::{load_map_with_field, ring_mounts};
 use filters::{Methods, Trace};
-use world::{EchoSource, SimRun, WorldConfig};
+use world::{EchoSource, SimReading, SimRun, WorldConfig};
 
 /// `simulate`.
 #[derive(Args)]
@@ -101,6 +101,9 @@ pub struct SimulateArgs {
     /// the true pose (docs/localization.md).
     #[arg(long)]
     trace: Option<PathBuf>,
+    /// A run derived from a lidar run's scans instead (issue #35).
+    #[command(flatten)]
+    scans: crate::from_scans::cli::ScansArgs,
 }
 
 /// κ at and above which the predictor counts as confident when its
@@ -145,13 +148,31 @@ pub fn simulate_cmd(a: &SimulateArgs) -> Result<String, LabError> {
         )));
     }
     let loaded = load_map_with_field(&a.map, a.buffer_mm)?;
+    if a.scans.from_scans.is_some() {
+        if a.scenario.is_some() || !a.kidnap.is_empty() {
+            return Err(LabError("--from-scans: --scenario and --kidnap do not apply to a lidar run".into()));
+        }
+        let common = crate::from_scans::cli::Common {
+            map: &a.map,
+            seed: a.seed,
+            mounts,
+            loaded: &loaded,
+            json: a.json,
+            start: start_arg,
+            log: a.log.clone(),
+            plot: a.plot.clone(),
+            trace: a.trace.clone(),
+            mcap: a.mcap.clone(),
+        };
+        return crate::from_scans::cli::run(&common, &a.scans);
+    }
     let (map, map_crc) = (loaded.view()?, loaded.crc());
     let mut cfg = WorldConfig::new(a.seed, a.distance_m, a.inconsistent, mounts.clone());
     cfg.kidnaps = kidnaps;
     let mut bar = Progress::new();
     let run = world::simulate_world(&map, &cfg, &mut |f| bar.set(0.5 * f))
         .map_err(|e| LabError(format!("{}: {e}", a.map.display())))?;
-    let records = to_records(&run)?;
+    let records = to_records(&run.readings)?;
     let header = header(&run, map_crc, &records);
     let mut steps = filters::steps_of_records(&header, &records).map_err(LabError)?;
     if a.only_consistent {
@@ -192,7 +213,7 @@ pub fn simulate_cmd(a: &SimulateArgs) -> Result<String, LabError> {
         outputs.push((p.clone(), bytes));
     }
     if let Some(p) = &a.log {
-        outputs.push((p.clone(), log_of(&run, &steps).into_bytes()));
+        outputs.push((p.clone(), log_of(&run.readings, &steps).into_bytes()));
     }
     if let Some(p) = &a.trace {
         outputs.push((p.clone(), localization::trace_csv(&trace).into_bytes()));
@@ -241,9 +262,8 @@ pub fn start_of(h: &Header) -> filters::Start {
 /// The run as a plain log: each step's time, transducer and range (what the
 /// filters read), the cumulative odometry the increments came from, and the
 /// true pose as the reference.
-fn log_of(run: &SimRun, steps: &[filters::Step]) -> String {
-    let rows: Vec<crate::log::Row> = run
-        .readings
+pub fn log_of(readings: &[SimReading], steps: &[filters::Step]) -> String {
+    let rows: Vec<crate::log::Row> = readings
         .iter()
         .zip(steps)
         .map(|(r, s)| crate::log::Row {
@@ -296,9 +316,9 @@ pub fn error_plot_path(p: &Path) -> PathBuf {
 /// The run as the firmware would see it: odometry increments in `f32` (what
 /// the scenario stores, so a replay uses the very same numbers) and echo
 /// times.
-pub fn to_records(run: &SimRun) -> Result<Vec<Record>, LabError> {
-    let mut prev = run.readings.first().map(|r| r.odometry);
-    run.readings
+pub fn to_records(readings: &[SimReading]) -> Result<Vec<Record>, LabError> {
+    let mut prev = readings.first().map(|r| r.odometry);
+    readings
         .iter()
         .map(|r| {
             let (a, b) = (prev.unwrap_or(r.odometry), r.odometry);

@@ -44,10 +44,10 @@ pub use run::{EchoKind, EchoSource, SimReading, SimRun};
 // and the agreement tolerance (the simulate command need not name them).
 #[allow(unused_imports)]
 pub use config::OdometryModel;
-#[allow(unused_imports)]
-pub use motion::OdometryErrors;
+pub use motion::{Odometry, OdometryErrors, Trajectory};
 #[allow(unused_imports)]
 pub use run::{Clutter, CONSISTENT_FIXED_MM, CONSISTENT_FRACTION};
+pub use sonar::{point_key, Beam, Draws, Listener, FAN_HALF_DEG, RAY_STEP_DEG};
 pub use timing::FiringPlan;
 pub use truth::World;
 

@@ -73,6 +73,21 @@ impl Trajectory {
         Self { pieces, start, duration: t, jumps: Vec::new() }
     }
 
+    /// Through `keys` (time s, pose; times increasing, headings unwrapped),
+    /// straight and at a steady rate between each two: a path given as
+    /// dense poses (a lidar run's, `crate::from_scans::path`).
+    pub fn through(keys: &[(f64, Pose)]) -> Self {
+        let start = keys.first().map_or((0.0, 0.0, 0.0), |k| k.1);
+        let t0 = keys.first().map_or(0.0, |k| k.0);
+        let pieces = keys
+            .windows(2)
+            .filter(|w| w[1].0 > w[0].0)
+            .map(|w| Piece { t0: w[0].0 - t0, dur: w[1].0 - w[0].0, a: w[0].1, b: w[1].1 })
+            .collect();
+        let duration = keys.last().map_or(0.0, |k| k.0 - t0);
+        Self { pieces, start, duration, jumps: Vec::new() }
+    }
+
     /// The pose at the end.
     pub fn end(&self) -> Pose {
         self.pieces.last().map_or(self.start, |p| p.b)

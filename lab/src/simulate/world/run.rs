@@ -17,6 +17,12 @@ pub enum EchoSource {
     },
     /// Something not in the map: furniture moved in, or a person.
     Unmapped,
+    /// A surface of a real building, seen by a lidar run's laser
+    /// (`crate::from_scans`): mapped or not is for the map to say.
+    World {
+        /// What part of it echoed.
+        kind: EchoKind,
+    },
     /// Another transducer's ping.
     Crosstalk,
     /// A false echo (electrical or acoustic noise).

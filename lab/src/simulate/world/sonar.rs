@@ -216,24 +216,60 @@ impl<'b> Listener<'b> {
 
     /// Hears what ray `i` (direction `d`) hit.
     pub fn hear(&mut self, i: usize, d: P, s: Surf<'_>) {
-        let k = self.beam.rays[i].1;
         let h = s.hit;
-        let base = self.beam.base_db(h.r, self.beam.dir_db[k]);
-        let cos_a = -(d.0 * h.normal.0 + d.1 * h.normal.1);
-        let alpha = libm::acos(cos_a.abs().min(1.0)).to_degrees();
-        let (surface, loss, source) = match (h.target, s.scene) {
-            (Target::Person(p), _) => ((2 << 32) | p as u64, PERSON_LOSS_DB, EchoSource::Unmapped),
+        match (h.target, s.scene) {
+            (Target::Person(p), _) => {
+                self.hear_face(i, d, h.r, h.normal, (2 << 32) | p as u64, PERSON_LOSS_DB, EchoSource::Unmapped)
+            }
             (Target::Shape(sh), Some(sc)) => {
                 let owner = sc.owner(sh);
                 self.corners(sc, sh, (self.o.0 + d.0 * h.r, self.o.1 + d.1 * h.r), h.r);
-                (owner.key(), 0.0, source_of(owner, EchoKind::Face))
+                self.hear_face(i, d, h.r, h.normal, owner.key(), 0.0, source_of(owner, EchoKind::Face));
             }
-            (Target::Shape(_), None) => return,
-        };
+            (Target::Shape(_), None) => {}
+        }
+    }
+
+    /// Hears a face that ray `i` (unit direction `d`) met at range `r` with
+    /// unit normal `normal`: the specular lobe from the incidence angle,
+    /// less `loss_db`; `surface` keys its fluctuation. Any scene's faces
+    /// come through here (the simulator's polygons, a lidar run's scans).
+    #[allow(clippy::too_many_arguments)]
+    pub fn hear_face(&mut self, i: usize, d: P, r: f64, normal: P, surface: u64, loss_db: f64, source: EchoSource) {
+        let Some(&(_, k)) = self.beam.rays.get(i) else { return };
+        let base = self.beam.base_db(r, self.beam.dir_db[k]);
+        let cos_a = -(d.0 * normal.0 + d.1 * normal.1);
+        let alpha = libm::acos(cos_a.abs().min(1.0)).to_degrees();
         let specular =
             -20.0 / std::f64::consts::LN_10 * alpha * alpha / (2.0 * SPECULAR_WIDTH_DEG * SPECULAR_WIDTH_DEG);
-        let level = base + specular - loss + self.draws.fluctuation(surface) - self.draws.threshold_db;
-        self.offer(h.r, level, source);
+        let level = base + specular - loss_db + self.draws.fluctuation(surface) - self.draws.threshold_db;
+        self.offer(r, level, source);
+    }
+
+    /// Hears a point-like reflector at `v` (an inside corner's
+    /// retro-reflection, an outside edge's diffraction): `term_db` against
+    /// a face at normal incidence, heard at its own bearing in the beam.
+    pub fn hear_point(&mut self, v: P, term_db: f64, key: u64, source: EchoSource) {
+        let rv = libm::hypot(v.0 - self.o.0, v.1 - self.o.1);
+        let th = wrap(libm::atan2(v.1 - self.o.1, v.0 - self.o.0) - self.axis);
+        if th.abs() > FAN_HALF_DEG.to_radians() || rv <= 0.0 {
+            return;
+        }
+        let level = self.beam.base_db(rv, self.beam.dir_at(th)) + term_db + self.draws.fluctuation(key)
+            - self.draws.threshold_db;
+        self.offer(rv, level, source);
+    }
+
+    /// The term of a corner or edge whose free wedge is `wedge_deg` wide,
+    /// seen from `rv` m (`None`: it echoes as no point does).
+    pub fn point_term(wedge_deg: f64, rv: f64) -> Option<(f64, EchoKind)> {
+        if (CORNER_WEDGE_DEG.0..=CORNER_WEDGE_DEG.1).contains(&wedge_deg) {
+            Some((-CORNER_LOSS_DB, EchoKind::InsideCorner))
+        } else if wedge_deg >= EDGE_WEDGE_MIN_DEG {
+            Some((-EDGE_LOSS_DB - 20.0 * libm::log10(rv.max(0.1)), EchoKind::OutsideEdge))
+        } else {
+            None
+        }
     }
 
     /// Inside corners and outside edges of shape `sh` near the hit point `p`.
@@ -250,17 +286,8 @@ impl<'b> Listener<'b> {
             }
             let back = libm::atan2(self.o.1 - v.1, self.o.0 - v.0);
             let Some(wedge) = sc.wedge_deg(sh, vi, back) else { continue };
-            let (term, kind) = if (CORNER_WEDGE_DEG.0..=CORNER_WEDGE_DEG.1).contains(&wedge) {
-                (-CORNER_LOSS_DB, EchoKind::InsideCorner)
-            } else if wedge >= EDGE_WEDGE_MIN_DEG {
-                (-EDGE_LOSS_DB - 20.0 * libm::log10(rv.max(0.1)), EchoKind::OutsideEdge)
-            } else {
-                continue;
-            };
-            let key = mix64((libm::round(v.0 * 1000.0) as i64 as u64) ^ mix64(libm::round(v.1 * 1000.0) as i64 as u64));
-            let level = self.beam.base_db(rv, self.beam.dir_at(th)) + term + self.draws.fluctuation(key)
-                - self.draws.threshold_db;
-            self.offer(rv, level, source_of(sc.owner(sh), kind));
+            let Some((term, kind)) = Self::point_term(wedge, rv) else { continue };
+            self.hear_point(v, term, point_key(v), source_of(sc.owner(sh), kind));
         }
     }
 
@@ -314,6 +341,11 @@ impl<'b> Listener<'b> {
             _ => (None, EchoSource::None),
         }
     }
+}
+
+/// The fluctuation key of a point reflector at `v` (m).
+pub fn point_key(v: P) -> u64 {
+    mix64((libm::round(v.0 * 1000.0) as i64 as u64) ^ mix64(libm::round(v.1 * 1000.0) as i64 as u64))
 }
 
 fn source_of(owner: Owner, kind: EchoKind) -> EchoSource {

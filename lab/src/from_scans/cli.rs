@@ -1,0 +1,137 @@
+//! `echoloc-lab simulate --from-scans RUN --map MAP`: one rung's JSON
+//! report (simulate's keys, plus `from_scans` and `at_truth`), or
+//! `--ladder`: every rung, a table.
+
+use std::path::PathBuf;
+
+use clap::Args;
+use serde_json::{json, Value};
+
+use super::{at_truth, derive, map_covers, run_filters, summary, MapInputs, Readings};
+use crate::map::{LabError, LoadedMap};
+use crate::simulate::filters::Methods;
+use crate::simulate::localization::StartArg;
+
+/// `simulate`'s options for a run derived from a lidar run's scans.
+#[derive(Args, Clone, Debug)]
+pub struct ScansArgs {
+    /// Derive the ring's readings from a lidar run (a CARMEN log, plain or
+    /// gzip) instead of simulating a world: real geometry and clutter
+    /// (docs/real-buildings.md). --distance-m, --inconsistent, --kidnap and
+    /// --scenario do not apply.
+    #[arg(long = "from-scans", value_name = "RUN")]
+    pub from_scans: Option<PathBuf>,
+    /// The part of the run to drive, FROM:TO in scan indices.
+    #[arg(long, default_value = ":", requires = "from_scans")]
+    pub pass: String,
+    /// Where the readings come from (the ladder's rungs): predicted, map,
+    /// mapped-laser or laser.
+    #[arg(long, value_enum, default_value = "laser", requires = "from_scans")]
+    pub readings: Readings,
+    /// Every rung of the ladder, printed as a table (--json: one JSON array).
+    #[arg(long, requires = "from_scans", conflicts_with_all = ["readings"])]
+    pub ladder: bool,
+}
+
+/// What `simulate` passes on.
+pub struct Common<'a> {
+    pub map: &'a std::path::Path,
+    pub seed: u64,
+    pub mounts: Vec<echoloc::predict::Mount>,
+    pub loaded: &'a LoadedMap,
+    pub json: bool,
+    pub start: Option<StartArg>,
+    pub log: Option<PathBuf>,
+    pub plot: Option<PathBuf>,
+    pub trace: Option<PathBuf>,
+    pub mcap: Option<PathBuf>,
+}
+
+/// Runs one rung, or the ladder.
+pub fn run(c: &Common<'_>, a: &ScansArgs) -> Result<String, LabError> {
+    let Some(path) = &a.from_scans else { return Err(LabError("--from-scans: give a run".into())) };
+    let pass = crate::lidar::Pass::parse(&a.pass)?;
+    let scans = crate::lidar::read(path)?.pass(pass)?;
+    let view = c.loaded.view()?;
+    let grid = match c.loaded.kind() {
+        crate::map::MapKind::RosMapServer => Some(crate::map::ros::load(c.map)?),
+        _ => None,
+    };
+    let inputs = MapInputs { view: &view, grid: grid.as_ref() };
+    let rungs: Vec<Readings> = if a.ladder { Readings::ALL.to_vec() } else { vec![a.readings] };
+    let mut reports = Vec::new();
+    let mut outputs: Vec<(PathBuf, Vec<u8>)> = Vec::new();
+    for &rung in &rungs {
+        let d = derive(&scans, rung, &inputs, &c.mounts, c.seed)
+            .map_err(|e| LabError(format!("{}: {e}", path.display())))?;
+        let (trace, steps, kept) = run_filters(&d, &view, view.field(), &c.mounts, c.loaded.crc(), c.seed, c.start)
+            .map_err(|e| LabError(format!("{}: {e}", path.display())))?;
+        let mut r = crate::simulate::report(&trace, None);
+        if let Some(o) = r.as_object_mut() {
+            o.insert("localization".into(), crate::simulate::localization::report(&trace, &[]));
+            let mut s = summary(&d, &scans, rung);
+            if let (Some(g), Some(so)) = (&grid, s.as_object_mut()) {
+                so.insert("map_covers_path".into(), json!((map_covers(g, &d.readings) * 1e4).round() / 1e4));
+            }
+            o.insert("from_scans".into(), s);
+            o.insert("at_truth".into(), at_truth(&view, &c.mounts, &kept));
+        }
+        // Files are written for one rung only (the last with --ladder would overwrite the others).
+        if !a.ladder {
+            if let Some(p) = &c.log {
+                outputs.push((p.clone(), crate::simulate::log_of(&kept, &steps).into_bytes()));
+            }
+            if let Some(p) = &c.trace {
+                outputs.push((p.clone(), crate::simulate::localization::trace_csv(&trace).into_bytes()));
+            }
+            if let Some(p) = &c.plot {
+                let (paths, errors) =
+                    crate::simulate::figures::draw_as(&view, &[], &trace, crate::figure::Format::of(p))
+                        .map_err(LabError)?;
+                outputs.push((p.clone(), paths));
+                outputs.push((crate::simulate::error_plot_path(p), errors));
+            }
+            if let Some(p) = &c.mcap {
+                let rec = crate::foxglove::record(&view, &c.mounts, &steps, &trace, &[])
+                    .map_err(|e| LabError(format!("--mcap: {e}")))?;
+                outputs.push((p.clone(), rec.finish().map_err(|e| LabError(format!("--mcap: {e}")))?));
+            }
+        }
+        reports.push((rung, r, trace));
+    }
+    crate::simulate::write_all(&outputs)?;
+    if !a.ladder {
+        let r = &reports[0].1;
+        return Ok(if c.json { r.to_string() } else { serde_json::to_string_pretty(r).unwrap_or_default() });
+    }
+    if c.json {
+        return Ok(Value::Array(reports.into_iter().map(|(_, r, _)| r).collect()).to_string());
+    }
+    Ok(table(&reports))
+}
+
+/// The ladder as a Markdown table.
+fn table(reports: &[(Readings, Value, crate::simulate::filters::Trace)]) -> String {
+    let mut out = String::from(
+        "| readings | kept | confirmed | confirmed at truth | EKF position RMSE (m) | heading RMSE (°) | max error (m) | cycles > 0.5 m off | of those tracking |\n|---|---|---|---|---|---|---|---|---|\n",
+    );
+    for (rung, r, trace) in reports {
+        let e = trace.errors(Methods::Ekf);
+        let pct = |v: &Value| v.as_f64().map_or("–".into(), |x| format!("{:.1} %", 100.0 * x));
+        let loc = &r["localization"];
+        let tracking_off = loc["off_cycles_known"].as_f64().map(|k| 1.0 - k);
+        out.push_str(&format!(
+            "| {} | {} | {} | {} | {} | {} | {} | {} | {} |\n",
+            rung.name(),
+            r["readings"],
+            pct(&r["verdicts"]["confirmed_fraction"]),
+            pct(&r["at_truth"]["confirmed_fraction"]),
+            e.map_or("–".into(), |e| format!("{:.3}", e.position_rmse_m)),
+            e.map_or("–".into(), |e| format!("{:.2}", e.heading_rmse_deg)),
+            e.map_or("–".into(), |e| format!("{:.2}", e.max_position_m)),
+            pct(&loc["off_fraction"]),
+            tracking_off.map_or("–".into(), |x| format!("{:.1} %", 100.0 * x)),
+        ));
+    }
+    out
+}

@@ -1,0 +1,163 @@
+//! The ring fired along a lidar run's path, each ping heard off the scans'
+//! surfaces through the simulator's own sonar physics
+//! ([`crate::simulate::world::Listener`]: the beam pattern, the specular
+//! lobe, corners and edges, air absorption, the receiver's threshold and
+//! noise, crosstalk and false echoes) and timed by the driver's own plan.
+//!
+//! Each ray of a ping is heard off the scan nearest in time whose laser
+//! saw that ray's way free up to what it hit (or up to the sonar's reach):
+//! the world as it was then, people where they stood. A ray no scan saw is
+//! not heard; a transducer whose main lobe (±12.7°, the piston's first
+//! null) is less than [`MIN_COVERED`] seen makes no reading (the laser
+//! does not cover it: the ring's rear half, mostly).
+
+use crate::simulate::world::{
+    point_key, wrap, Beam, Draws, EchoKind, EchoSource, FiringPlan, Listener, FAN_HALF_DEG, RAY_STEP_DEG,
+};
+
+use super::surfaces::{Surfaces, P};
+
+/// The main lobe the coverage is judged on, degrees (the first null, DESIGN §6).
+pub const MAIN_LOBE_DEG: f64 = 12.7;
+/// Least fraction of the main lobe's rays the scans must have seen.
+pub const MIN_COVERED: f64 = 0.9;
+/// Scans tried for one ray, nearest in time first.
+const MAX_TRIES: usize = 40;
+/// Scans further than this in time are not tried, s.
+const MAX_AGE_S: f64 = 120.0;
+/// Steps along a ray at which the laser's view is checked, m.
+const SEEN_STEP_M: f64 = 0.1;
+/// The part of a ray before its hit that need not be seen, m (the hit's own neighbourhood).
+const HIT_SLACK_M: f64 = 0.05;
+
+/// Scans sorted by time, and the sonar to hear them with.
+pub struct Ears<'a> {
+    pub surfaces: &'a [Surfaces],
+    pub beam: &'a Beam,
+    pub plan: &'a FiringPlan,
+    pub seed: u64,
+}
+
+/// One ping's outcome.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Ping {
+    /// The echo time as the driver's clock counts it, and what made it.
+    pub echo_us: Option<u32>,
+    pub source: EchoSource,
+    /// The fraction of the main lobe's rays some scan saw.
+    pub covered: f64,
+}
+
+impl Ears<'_> {
+    /// Scans in order of their distance in time from `t`.
+    fn nearest(&self, t: f64) -> Vec<usize> {
+        let s = self.surfaces;
+        let mut hi = s.partition_point(|x| x.time_s < t);
+        let mut lo = hi;
+        let mut out = Vec::with_capacity(MAX_TRIES);
+        while out.len() < MAX_TRIES {
+            let before = lo.checked_sub(1).filter(|&i| t - s[i].time_s <= MAX_AGE_S);
+            let after = (hi < s.len() && s[hi].time_s - t <= MAX_AGE_S).then_some(hi);
+            match (before, after) {
+                (Some(b), Some(a)) => {
+                    if t - s[b].time_s <= s[a].time_s - t {
+                        out.push(b);
+                        lo = b;
+                    } else {
+                        out.push(a);
+                        hi += 1;
+                    }
+                }
+                (Some(b), None) => {
+                    out.push(b);
+                    lo = b;
+                }
+                (None, Some(a)) => {
+                    out.push(a);
+                    hi += 1;
+                }
+                (None, None) => break,
+            }
+        }
+        out
+    }
+
+    /// Ping number `index` at time `t` from a transducer at `o` facing `axis` (rad).
+    pub fn ping(&self, index: u64, t: f64, o: P, axis: f64) -> Ping {
+        let draws = Draws::new(self.seed, index, self.plan);
+        let mut ear = Listener::new(self.beam, &draws, self.plan, o, axis);
+        let rmax = self.beam.max_range(self.plan);
+        let cands = self.nearest(t);
+        let rays: Vec<(P, usize)> = ear.rays().collect();
+        // Per ray: the scan that saw it, and its hit there.
+        let mut chosen: Vec<Option<(usize, Option<super::surfaces::SurfaceHit>)>> = vec![None; rays.len()];
+        let (mut lobe, mut lobe_seen) = (0usize, 0usize);
+        for (&(d, i), slot) in rays.iter().zip(chosen.iter_mut()) {
+            for &k in &cands {
+                let s = &self.surfaces[k];
+                let hit = s.cast(o, d, rmax);
+                let until = hit.map_or(rmax, |h| h.r - HIT_SLACK_M);
+                if s.seen_free_along(o, d, SEEN_STEP_M / 2.0, until, SEEN_STEP_M) {
+                    *slot = Some((k, hit));
+                    break;
+                }
+            }
+            let off = ray_angle(i);
+            if off.abs() <= MAIN_LOBE_DEG {
+                lobe += 1;
+                lobe_seen += usize::from(slot.is_some());
+            }
+        }
+        for (&(d, i), c) in rays.iter().zip(&chosen) {
+            if let Some((k, Some(h))) = *c {
+                let s = &self.surfaces[k];
+                ear.hear_face(
+                    i,
+                    d,
+                    h.r,
+                    h.normal,
+                    s.key ^ (u64::from(h.surface) << 20),
+                    0.0,
+                    EchoSource::World { kind: EchoKind::Face },
+                );
+            }
+        }
+        // Corners and edges of the scans heard, where the ray at their
+        // bearing saw that scan and nothing nearer.
+        let mut heard: Vec<usize> = chosen.iter().filter_map(|c| c.map(|c| c.0)).collect();
+        heard.sort_unstable();
+        heard.dedup();
+        let capture = |r: f64| 0.03f64.max(r * RAY_STEP_DEG.to_radians());
+        for k in heard {
+            for pe in &self.surfaces[k].points {
+                let v = pe.at;
+                let rv = (v.0 - o.0).hypot(v.1 - o.1);
+                if rv > rmax {
+                    continue;
+                }
+                let th = wrap((v.1 - o.1).atan2(v.0 - o.0) - axis).to_degrees();
+                if th.abs() > FAN_HALF_DEG {
+                    continue;
+                }
+                let j = ((th + FAN_HALF_DEG) / RAY_STEP_DEG).round() as usize;
+                let visible = match chosen.get(j).copied().flatten() {
+                    Some((kk, h)) => kk == k && h.is_none_or(|h| h.r >= rv - capture(rv)),
+                    None => false,
+                };
+                if !visible {
+                    continue;
+                }
+                if let Some((term, kind)) = Listener::point_term(pe.wedge_deg, rv) {
+                    ear.hear_point(v, term, point_key(v), EchoSource::World { kind });
+                }
+            }
+        }
+        let (echo_us, source) = ear.reading(self.plan);
+        Ping { echo_us, source, covered: if lobe == 0 { 0.0 } else { lobe_seen as f64 / lobe as f64 } }
+    }
+}
+
+/// The angle of ray `i` off the axis, degrees (the simulator's fan).
+fn ray_angle(i: usize) -> f64 {
+    -FAN_HALF_DEG + i as f64 * RAY_STEP_DEG
+}
