@@ -103,6 +103,27 @@ impl LidarRun {
     }
 }
 
+impl LidarRun {
+    /// The scans of several passes, in the order given (a map made from
+    /// every part of a run but the one driven: `0:200,320:`).
+    pub fn passes(&self, passes: &[Pass]) -> Result<LidarRun, LidarError> {
+        let mut out: Option<LidarRun> = None;
+        for &p in passes {
+            let part = self.pass(p)?;
+            match &mut out {
+                None => out = Some(part),
+                Some(o) => o.scans.extend(part.scans),
+            }
+        }
+        out.ok_or_else(|| LidarError::Pass("no pass given".into()))
+    }
+}
+
+/// Parses `FROM:TO[,FROM:TO…]`.
+pub fn parse_passes(s: &str) -> Result<Vec<Pass>, LidarError> {
+    s.split(',').map(Pass::parse).collect()
+}
+
 /// Part of a run: scans `from..to` (indices into the whole run, either end
 /// open), written `FROM:TO`.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]

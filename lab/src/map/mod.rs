@@ -97,7 +97,8 @@ pub enum MapCmd {
         /// Output map_server YAML; the PGM is written beside it.
         #[arg(short = 'o', long = "out")]
         out: PathBuf,
-        /// The part of the run to map, FROM:TO in scan indices (either end may be left out).
+        /// The part of the run to map, FROM:TO in scan indices (either end may
+        /// be left out), or several parts, FROM:TO,FROM:TO.
         #[arg(long, default_value = ":")]
         pass: String,
         /// Cell size, m.
@@ -324,8 +325,8 @@ pub fn run(cmd: MapCmd) -> Result<String, LabError> {
             Ok(summary.to_json())
         }
         MapCmd::FromScans { run, out, pass, resolution_m, max_range_m } => {
-            let pass = crate::lidar::Pass::parse(&pass)?;
-            let scans = crate::lidar::read(&run)?.pass(pass)?;
+            let passes = crate::lidar::parse_passes(&pass)?;
+            let scans = crate::lidar::read(&run)?.passes(&passes)?;
             let opt = crate::lidar::grid::GridOptions { resolution_m, max_range_m, ..Default::default() };
             let g = crate::lidar::grid::build(&scans, &opt).map_err(|e| LabError(format!("{}: {e}", run.display())))?;
             let image = crate::lidar::grid::write(&g, &out)?;
@@ -333,7 +334,7 @@ pub fn run(cmd: MapCmd) -> Result<String, LabError> {
             Ok(serde_json::json!({
                 "run": run.display().to_string(),
                 "format": scans.format,
-                "pass": pass.to_string(),
+                "pass": passes.iter().map(|p| p.to_string()).collect::<Vec<_>>().join(","),
                 "scans": scans.scans.len(),
                 "path_m": (scans.path_length_m() * 10.0).round() / 10.0,
                 "size_cells": [g.width, g.height],
