@@ -31,6 +31,14 @@ pub struct ScansArgs {
     /// Every rung of the ladder, printed as a table (--json: one JSON array).
     #[arg(long, requires = "from_scans", conflicts_with_all = ["readings"])]
     pub ladder: bool,
+    /// When the ring fires: along-path (every 0.6 s, the driver's schedule)
+    /// or at-scans (the whole ring once per scan, as sparse real logs keep it).
+    #[arg(long, value_enum, default_value = "along-path", requires = "from_scans")]
+    pub fire: super::Fire,
+    /// The widest incidence at which a smooth face is heard at 1 m, degrees
+    /// (DESIGN §4.9: about 10; the lobe narrows with range).
+    #[arg(long = "face-lobe-deg", default_value_t = super::FACE_HEARD_AT_1M_DEG, requires = "from_scans")]
+    pub face_lobe_deg: f64,
 }
 
 /// What `simulate` passes on.
@@ -62,8 +70,9 @@ pub fn run(c: &Common<'_>, a: &ScansArgs) -> Result<String, LabError> {
     let mut reports = Vec::new();
     let mut outputs: Vec<(PathBuf, Vec<u8>)> = Vec::new();
     for &rung in &rungs {
-        let d = derive(&scans, rung, &inputs, &c.mounts, c.seed)
-            .map_err(|e| LabError(format!("{}: {e}", path.display())))?;
+        let opt = super::DeriveOptions { seed: c.seed, fire: a.fire, face_heard_at_1m_deg: a.face_lobe_deg };
+        let d =
+            derive(&scans, rung, &inputs, &c.mounts, &opt).map_err(|e| LabError(format!("{}: {e}", path.display())))?;
         let (trace, steps, kept) = run_filters(&d, &view, view.field(), &c.mounts, c.loaded.crc(), c.seed, c.start)
             .map_err(|e| LabError(format!("{}: {e}", path.display())))?;
         let mut r = crate::simulate::report(&trace, None);

@@ -31,6 +31,7 @@ use echoloc::scenario::Header;
 use serde_json::{json, Value};
 
 use crate::credence::rng::Rng;
+use crate::credence::synth::LEVEL_AT_1M_DB;
 use crate::lidar::{LidarRun, Scan};
 use crate::map::ros::{Cell, Grid};
 use crate::simulate::filters::{self, predict_params, Start, Trace};
@@ -76,6 +77,41 @@ impl Readings {
         matches!(self, Readings::Map | Readings::MappedLaser)
     }
 }
+
+/// When the ring fires.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum Fire {
+    /// On the driver's own schedule (a cycle every 0.6 s) along the path
+    /// between the scans.
+    AlongPath,
+    /// The whole ring at each scan's pose and time, as a logger that keeps
+    /// one record per 0.5–1 m writes it (issue #35's real logs).
+    AtScans,
+}
+
+/// How the ring's readings are derived.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DeriveOptions {
+    /// Seed of every draw.
+    pub seed: u64,
+    /// When the ring fires.
+    pub fire: Fire,
+    /// The widest incidence at which a smooth face is heard at 1 m, degrees
+    /// (DESIGN §4.9: about ±10°, narrowing with range).
+    pub face_heard_at_1m_deg: f64,
+}
+
+impl Default for DeriveOptions {
+    fn default() -> Self {
+        Self { seed: 1, fire: Fire::AlongPath, face_heard_at_1m_deg: FACE_HEARD_AT_1M_DEG }
+    }
+}
+
+/// A Polaroid hears a smooth face at 1 m only within about this incidence,
+/// degrees (DESIGN §4.9, after Kuc and Siegel): narrower than the
+/// simulator's rougher faces (`world::SPECULAR_WIDTH_DEG`, heard to about
+/// 30°), since a painted wall is a mirror at 7 mm.
+pub const FACE_HEARD_AT_1M_DEG: f64 = 10.0;
 
 /// A laser return this close to an occupied cell is on a mapped wall, m.
 pub const MAPPED_WITHIN_M: f64 = 0.1;
@@ -129,8 +165,12 @@ pub fn derive(
     rung: Readings,
     map: &MapInputs<'_>,
     mounts: &[Mount],
-    seed: u64,
+    opt: &DeriveOptions,
 ) -> Result<Derived, String> {
+    let seed = opt.seed;
+    if !(opt.face_heard_at_1m_deg > 0.0 && opt.face_heard_at_1m_deg <= 60.0) {
+        return Err(format!("--face-lobe-deg {}: expected more than 0 and at most 60", opt.face_heard_at_1m_deg));
+    }
     if run.scans.len() < 2 {
         return Err("a run needs at least two scans".into());
     }
@@ -143,7 +183,9 @@ pub fn derive(
     let cfg = WorldConfig::new(seed, 1.0, 0.0, mounts.to_vec());
     let path = path::through(&run.scans);
     let plan = FiringPlan::new(mounts.len(), cfg.binh_after_us).map_err(|e| e.to_string())?;
-    let beam = Beam::new(cfg.temperature_c, cfg.humidity_pct);
+    let unit = Beam::new(cfg.temperature_c, cfg.humidity_pct);
+    let per_width = unit.widest_heard_deg(LEVEL_AT_1M_DB) / crate::simulate::world::SPECULAR_WIDTH_DEG;
+    let beam = unit.with_specular_width(opt.face_heard_at_1m_deg / per_width);
     let errors = OdometryErrors::draw(&cfg.odometry, &mut Rng::substream(seed, STREAM_ODOMETRY_ERRORS));
     let odometry =
         Odometry::integrate(&path.traj, &cfg.odometry, &errors, &mut Rng::substream(seed, STREAM_ODOMETRY_NOISE));
@@ -163,11 +205,21 @@ pub fn derive(
         })
         .collect();
     let duration = path.traj.duration();
-    let cycles = ((duration * 1e6) / f64::from(plan.period_us)).floor().max(1.0) as u32;
-    let firings: Vec<(u32, usize, f64)> = (0..cycles)
-        .flat_map(|c| (0..plan.order.len()).map(move |s| (c, s, 0.0)))
-        .map(|(c, s, _)| (c, s, plan.fire_us(c, s) as f64 * 1e-6))
-        .collect();
+    let firings: Vec<(u32, usize, f64)> = match opt.fire {
+        Fire::AlongPath => {
+            let cycles = ((duration * 1e6) / f64::from(plan.period_us)).floor().max(1.0) as u32;
+            (0..cycles)
+                .flat_map(|c| (0..plan.order.len()).map(move |s| (c, s, 0.0)))
+                .map(|(c, s, _)| (c, s, plan.fire_us(c, s) as f64 * 1e-6))
+                .collect()
+        }
+        Fire::AtScans => path
+            .scan_times
+            .iter()
+            .enumerate()
+            .flat_map(|(c, &t)| (0..plan.order.len()).map(move |s| (c as u32, s, t)))
+            .collect(),
+    };
     let ears = sonar::Ears { surfaces: &surfaces, beam: &beam, plan: &plan, seed };
     let net = CredenceNet::shipped();
     let params = predict_params(map.view.buffer_mm());

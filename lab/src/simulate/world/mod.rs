@@ -47,7 +47,7 @@ pub use config::OdometryModel;
 pub use motion::{Odometry, OdometryErrors, Trajectory};
 #[allow(unused_imports)]
 pub use run::{Clutter, CONSISTENT_FIXED_MM, CONSISTENT_FRACTION};
-pub use sonar::{point_key, Beam, Draws, Listener, FAN_HALF_DEG, RAY_STEP_DEG};
+pub use sonar::{point_key, Beam, Draws, Listener, FAN_HALF_DEG, RAY_STEP_DEG, SPECULAR_WIDTH_DEG};
 pub use timing::FiringPlan;
 pub use truth::World;
 

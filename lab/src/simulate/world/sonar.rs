@@ -84,6 +84,8 @@ pub struct Beam {
     dir_db: Vec<f64>,
     /// The rays: (angle off the axis, rad; index into `dir_db`).
     rays: Vec<(f64, usize)>,
+    /// Width of the specular lobe, degrees ([`SPECULAR_WIDTH_DEG`] unless set).
+    specular_width_deg: f64,
 }
 
 /// Resolution of the directivity table, degrees.
@@ -105,7 +107,27 @@ impl Beam {
         let rays = (0..=n / per)
             .map(|i| ((-FAN_HALF_DEG + (i * per) as f64 * TABLE_STEP_DEG).to_radians(), i * per))
             .collect();
-        Self { c, absorption: absorption_db_per_m(CARRIER_HZ, temperature_c, humidity_pct, PRESSURE_KPA), dir_db, rays }
+        Self {
+            c,
+            absorption: absorption_db_per_m(CARRIER_HZ, temperature_c, humidity_pct, PRESSURE_KPA),
+            dir_db,
+            rays,
+            specular_width_deg: SPECULAR_WIDTH_DEG,
+        }
+    }
+
+    /// The same beam over faces whose specular lobe is `deg` wide (standard
+    /// deviation of the amplitude, degrees): smoother faces than the
+    /// simulator's.
+    pub fn with_specular_width(mut self, deg: f64) -> Self {
+        self.specular_width_deg = deg;
+        self
+    }
+
+    /// The widest incidence at which a face at normal incidence `margin_db`
+    /// above the threshold is still heard, degrees.
+    pub fn widest_heard_deg(&self, margin_db: f64) -> f64 {
+        self.specular_width_deg * (2.0 * margin_db.max(0.0) * std::f64::consts::LN_10 / 20.0).sqrt()
     }
 
     /// 20·log₁₀ D²(θ), θ in radians within the fan (interpolated).
@@ -240,8 +262,8 @@ impl<'b> Listener<'b> {
         let base = self.beam.base_db(r, self.beam.dir_db[k]);
         let cos_a = -(d.0 * normal.0 + d.1 * normal.1);
         let alpha = libm::acos(cos_a.abs().min(1.0)).to_degrees();
-        let specular =
-            -20.0 / std::f64::consts::LN_10 * alpha * alpha / (2.0 * SPECULAR_WIDTH_DEG * SPECULAR_WIDTH_DEG);
+        let w = self.beam.specular_width_deg;
+        let specular = -20.0 / std::f64::consts::LN_10 * alpha * alpha / (2.0 * w * w);
         let level = base + specular - loss_db + self.draws.fluctuation(surface) - self.draws.threshold_db;
         self.offer(r, level, source);
     }
