@@ -21,7 +21,7 @@ use serde_json::{json, Value};
 use crate::bag::cli::BagTopics;
 use crate::log::Log;
 use crate::map::LabError;
-use crate::predict::{load_map_with_field, ring_mounts};
+use crate::predict::ring_mounts;
 use crate::replay::{parse_pose, start, steps_of_log};
 use crate::simulate::{filters, report};
 
@@ -52,6 +52,9 @@ pub struct BoardArgs {
     /// C-space buffer for a .yaml or .geojson map, mm.
     #[arg(long = "buffer-mm", default_value_t = 100)]
     pub buffer_mm: u32,
+    /// How a .yaml map's walls are drawn.
+    #[command(flatten)]
+    pub grid: crate::map::load::GridArgs,
     /// The board's `replay` firmware.
     #[arg(long, default_value = "target/thumbv7em-none-eabihf/release/replay")]
     pub firmware: PathBuf,
@@ -140,7 +143,7 @@ pub fn board_cmd(a: &BoardArgs) -> Result<String, LabError> {
             mounts.len()
         )));
     }
-    let loaded = load_map_with_field(&a.map, a.buffer_mm)?;
+    let loaded = crate::map::load::load(&a.map, &a.grid.options(a.buffer_mm, true))?;
     let (map, blob, crc) = (loaded.view()?, loaded.blob(), loaded.crc());
     // The scenario for the board.
     let (header, records) = crate::scenario::from_log(&log, &mounts, crc, given)

@@ -113,6 +113,9 @@ pub struct PredictArgs {
     /// C-space buffer when MAP is imported here (a .map blob carries its own), mm.
     #[arg(long = "buffer-mm", default_value_t = 100, allow_hyphen_values = true)]
     buffer_mm: u32,
+    /// How a .yaml map's walls are drawn.
+    #[command(flatten)]
+    grid: crate::map::load::GridArgs,
     /// Credence model.
     #[arg(long, value_enum, default_value = "net")]
     credence: Model,
@@ -171,7 +174,7 @@ pub fn ring_mounts(spec: &str) -> Result<Vec<Mount>, LabError> {
 }
 
 pub fn predict_cmd(a: &PredictArgs) -> Result<String, LabError> {
-    let loaded = load_map(&a.map, a.buffer_mm)?;
+    let loaded = map::load::load(&a.map, &a.grid.options(a.buffer_mm, false))?;
     let map = loaded.view()?;
     let window = WindowParams {
         r_min_mm: a.rmin_mm,

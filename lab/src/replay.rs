@@ -12,7 +12,7 @@ use serde_json::json;
 
 use crate::log::{Log, Row};
 use crate::map::LabError;
-use crate::predict::{load_map_with_field, ring_mounts};
+use crate::predict::ring_mounts;
 use crate::simulate::filters::{self, Start, Step};
 use crate::simulate::{check_writable, error_plot_path, figures, motion_f64, report, write_all, START_SIGMA};
 
@@ -52,6 +52,9 @@ pub struct ReplayArgs {
     /// C-space buffer for a .yaml or .geojson map, mm.
     #[arg(long = "buffer-mm", default_value_t = 100)]
     pub buffer_mm: u32,
+    /// How a .yaml map's walls are drawn.
+    #[command(flatten)]
+    pub grid: crate::map::load::GridArgs,
     /// One JSON object (the default prints the same, indented).
     #[arg(long)]
     pub json: bool,
@@ -167,7 +170,7 @@ pub fn replay_cmd(a: &ReplayArgs) -> Result<String, LabError> {
         }
         (None, None) => return Err(LabError("give --log or --bag".into())),
     };
-    let loaded = load_map_with_field(&a.map, a.buffer_mm)?;
+    let loaded = crate::map::load::load(&a.map, &a.grid.options(a.buffer_mm, true))?;
     let map = loaded.view()?;
     let steps = steps_of_log(&log);
     let mut how = start(&log, given);

@@ -452,6 +452,8 @@ pub fn at_truth<M: MapSource>(map: &M, mounts: &[Mount], kept: &[SimReading]) ->
     let params = predict_params(map.buffer_mm());
     let (mut n, mut confirmed, mut echoes) = (0usize, 0usize, 0usize);
     let mut near: Vec<f64> = Vec::new();
+    // A per-reading dump for diagnosis (not a product): ECHOLOC_AT_TRUTH_CSV=FILE.
+    let mut dump = std::env::var_os("ECHOLOC_AT_TRUTH_CSV").and_then(|p| std::fs::File::create(p).ok());
     for r in kept {
         let Some(m) = mounts.get(usize::from(r.transducer)) else { continue };
         let pose = Pose {
@@ -462,6 +464,23 @@ pub fn at_truth<M: MapSource>(map: &M, mounts: &[Mount], kept: &[SimReading]) ->
         let Ok((p, _)) = predict_mount(map, &pose, m, &params, &net) else { continue };
         let reading = r.range_mm.map_or(Reading::NoEcho, |range_mm| Reading::Echo { range_mm });
         n += 1;
+        if let Some(f) = dump.as_mut() {
+            use std::io::Write;
+            let _ = writeln!(
+                f,
+                "{},{},{},{},{},{},{},{},{:?},{:?}",
+                r.time_s,
+                r.transducer,
+                r.range_mm.map_or(-1, |v| v as i64),
+                p.map_or(-1, |p| p.range_mm as i64),
+                p.map_or(0.0, |p| p.kappa.to_num::<f64>()),
+                p.map_or(0, |p| p.theta_mdeg),
+                p.map_or(0, |p| p.delta_mdeg),
+                p.map_or(0, |p| p.tolerance_mm),
+                p.map(|p| p.case),
+                r.source
+            );
+        }
         if judge(reading, p.as_ref(), &VerdictConfig::POLAROID) == Verdict::Confirmed {
             confirmed += 1;
         }

@@ -91,6 +91,32 @@ impl LoadOptions {
     }
 }
 
+/// How a `.yaml` map's walls are drawn, for the commands that load one
+/// (`simulate`, `replay`, `board`, `predict`): `map import`'s options.
+#[derive(clap::Args, Clone, Copy, Debug)]
+pub struct GridArgs {
+    /// A .yaml map's walls: contour (round the occupied cells) or lines
+    /// (straight walls through them, for SLAM maps of real buildings).
+    #[arg(long = "walls", value_enum, default_value_t = super::Walls::Contour)]
+    pub walls: super::Walls,
+    /// With --walls lines: most distance, mm, from a surface cell's centre to its wall (0: one cell).
+    #[arg(long = "line-tolerance-mm", default_value_t = 0)]
+    pub line_tolerance_mm: u32,
+}
+
+impl GridArgs {
+    /// The load options with buffer `buffer_mm` and, when `field`, the default localization field.
+    pub fn options(&self, buffer_mm: u32, field: bool) -> LoadOptions {
+        let mut o = LoadOptions::buffer(buffer_mm);
+        o.import.walls = self.walls;
+        o.import.line_tolerance_mm = self.line_tolerance_mm;
+        if !field {
+            o.import.field = None;
+        }
+        o
+    }
+}
+
 /// A loaded map: the compiled bytes, validated once as the firmware
 /// validates them, and where they came from.
 pub struct LoadedMap {

@@ -12,6 +12,7 @@ pub mod build;
 pub mod contour;
 pub mod field;
 pub mod geojson;
+pub mod lines;
 pub mod load;
 pub mod render;
 pub mod ros;
@@ -57,6 +58,14 @@ pub enum MapCmd {
         /// Occupancy grids: what unknown cells count as.
         #[arg(long = "unknown", value_enum, default_value_t = Unknown::Free)]
         unknown: Unknown,
+        /// Occupancy grids: contour (round the occupied cells) or lines
+        /// (straight walls through them, for real buildings' SLAM maps).
+        #[arg(long = "walls", value_enum, default_value_t = Walls::Contour)]
+        walls: Walls,
+        /// Occupancy grids with --walls lines: most distance, mm, from a
+        /// surface cell's centre to its wall (0: one cell).
+        #[arg(long = "line-tolerance-mm", default_value_t = 0)]
+        line_tolerance_mm: u32,
         /// Also write a PNG preview of the polygon map over the source grid.
         #[arg(long = "preview")]
         preview: Option<PathBuf>,
@@ -207,11 +216,25 @@ impl From<ImportError> for LabError {
     }
 }
 
+/// How an occupancy grid's obstacles become polygons.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum Walls {
+    /// Round the occupied cells' free faces, simplified within --simplify-mm.
+    Contour,
+    /// Straight walls through the surface cells, within --line-tolerance-mm
+    /// (`map::lines`; for maps made by SLAM of real buildings).
+    Lines,
+}
+
 /// How a map source is read and compiled.
 #[derive(Clone, Copy, Debug)]
 pub struct ImportOptions {
     pub simplify_mm: u32,
     pub unknown: Unknown,
+    /// Occupancy grids: contours or straight walls.
+    pub walls: Walls,
+    /// Occupancy grids with `Walls::Lines`: the deviation bound, mm (0: one cell).
+    pub line_tolerance_mm: u32,
     /// The localization field (`None`: a blob without one, which cannot
     /// localize globally).
     pub field: Option<FieldOptions>,
@@ -219,7 +242,13 @@ pub struct ImportOptions {
 
 impl Default for ImportOptions {
     fn default() -> Self {
-        Self { simplify_mm: DEFAULT_SIMPLIFY_MM, unknown: Unknown::Free, field: Some(FieldOptions::default()) }
+        Self {
+            simplify_mm: DEFAULT_SIMPLIFY_MM,
+            unknown: Unknown::Free,
+            walls: Walls::Contour,
+            line_tolerance_mm: 0,
+            field: Some(FieldOptions::default()),
+        }
     }
 }
 
@@ -289,6 +318,8 @@ pub fn run(cmd: MapCmd) -> Result<String, LabError> {
             cell_mm,
             simplify_mm,
             unknown,
+            walls,
+            line_tolerance_mm,
             preview,
             field_node_mm,
             field_dirs,
@@ -303,7 +334,8 @@ pub fn run(cmd: MapCmd) -> Result<String, LabError> {
                 clearance_mm: field_clearance_mm,
             };
             field.validate().map_err(|e| LabError(format!("--{e}")))?;
-            let opt = ImportOptions { simplify_mm, unknown, field: (!no_field).then_some(field) };
+            let opt =
+                ImportOptions { simplify_mm, unknown, walls, line_tolerance_mm, field: (!no_field).then_some(field) };
             let (blob, summary, src) = import(&input, buffer_mm, cell_mm, &opt)?;
             // Everything is computed before anything is written.
             let png = match &preview {
@@ -491,6 +523,31 @@ pub fn grid_shapes(
                 COORD_MAX / 1000
             ),
         });
+    }
+    if opt.walls == Walls::Lines {
+        let l = lines::extract(
+            grid,
+            opt.unknown == Unknown::Occupied,
+            &lines::LineOptions { tolerance_m: f64::from(opt.line_tolerance_mm) / 1000.0 },
+        );
+        let shapes = lines::shapes(&l);
+        let mut extra = serde_json::Map::new();
+        extra.insert("source".into(), "ros_map_server".into());
+        extra.insert("image".into(), y.image.display().to_string().into());
+        extra.insert("size_cells".into(), serde_json::json!([grid.width, grid.height]));
+        extra.insert("resolution_m".into(), y.resolution.into());
+        extra.insert("unknown_as".into(), opt.unknown.name().into());
+        extra.insert("walls".into(), "lines".into());
+        extra.insert(
+            "lines".into(),
+            serde_json::json!({
+                "surface_cells": l.surface_cells,
+                "walls": l.walls.len(),
+                "specks": l.specks.len(),
+                "tolerance_mm": if opt.line_tolerance_mm > 0 { f64::from(opt.line_tolerance_mm) } else { y.resolution * 1000.0 },
+            }),
+        );
+        return Ok((shapes, extra));
     }
     let occ: Vec<bool> = grid
         .cells

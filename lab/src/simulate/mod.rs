@@ -19,7 +19,7 @@ use echoloc::scenario::{self, Header, Record};
 use serde_json::{json, Value};
 
 use crate::map::{write_atomically, LabError};
-use crate::predict::{load_map_with_field, ring_mounts};
+use crate::predict::ring_mounts;
 use filters::{Methods, Trace};
 use world::{EchoSource, SimReading, SimRun, WorldConfig};
 
@@ -45,6 +45,9 @@ pub struct SimulateArgs {
     /// C-space buffer for a .yaml or .geojson map, mm.
     #[arg(long = "buffer-mm", default_value_t = 100)]
     buffer_mm: u32,
+    /// How a .yaml map's walls are drawn.
+    #[command(flatten)]
+    grid: crate::map::load::GridArgs,
     /// One JSON object (the default prints the same, indented).
     #[arg(long)]
     json: bool,
@@ -147,7 +150,7 @@ pub fn simulate_cmd(a: &SimulateArgs) -> Result<String, LabError> {
             a.ring
         )));
     }
-    let loaded = load_map_with_field(&a.map, a.buffer_mm)?;
+    let loaded = crate::map::load::load(&a.map, &a.grid.options(a.buffer_mm, true))?;
     if a.scans.from_scans.is_some() {
         if a.scenario.is_some() || !a.kidnap.is_empty() {
             return Err(LabError("--from-scans: --scenario and --kidnap do not apply to a lidar run".into()));
