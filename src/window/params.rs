@@ -112,7 +112,13 @@ impl WindowParams {
     /// of a Pioneer ring; the verdicts' `VerdictConfig::POLAROID` judges
     /// from the same range). The credence net's input domain starts at
     /// 500 mm: nearer ranges are rated as 500 mm, where an echo is weaker.
-    pub const POLAROID_6500: WindowParams = WindowParams { r_min_mm: 408, ..WindowParams::MARGE };
+    ///
+    /// `δ_max` is the Polaroid's, not MARGE's 15°: a smooth face echoes
+    /// only within about ±10° of its normal at 1 m, narrowing with range
+    /// (DESIGN §4.9, after Kuc and Siegel), so a face predicted further off
+    /// its normal is one the transducer does not hear (issue #35:
+    /// `docs/real-buildings.md`, where 9° and more lose a building).
+    pub const POLAROID_6500: WindowParams = WindowParams { r_min_mm: 408, delta_max_deg: 8.0, ..WindowParams::MARGE };
 
     /// Checks every field.
     pub fn validate(&self) -> Result<(), WindowError> {

@@ -39,6 +39,22 @@ pub struct ScansArgs {
     /// (DESIGN §4.9: about 10; the lobe narrows with range).
     #[arg(long = "face-lobe-deg", default_value_t = super::FACE_HEARD_AT_1M_DEG, requires = "from_scans")]
     pub face_lobe_deg: f64,
+    /// Readings of transducers the laser did not cover (their main lobe
+    /// less than 90 % seen): drop (left out of the run) or keep (what the
+    /// seen rays heard; unseen space taken as empty). A board's scenario
+    /// needs every transducer every cycle: keep.
+    #[arg(long, value_enum, default_value = "drop", requires = "from_scans")]
+    pub uncovered: super::Uncovered,
+    /// Writes one CSV row per reading: the range, echoloc's prediction at
+    /// the true pose (range, κ, θ, δ, case) and what made the echo.
+    #[arg(long = "at-truth-csv", requires = "from_scans")]
+    pub at_truth_csv: Option<PathBuf>,
+    /// Draws one firing over the laser's returns (with --cone-at).
+    #[arg(long = "cone-plot", requires = "cone_at")]
+    pub cone_plot: Option<PathBuf>,
+    /// The firing: T_s:TRANSDUCER, the transducer's first reading from T_s on.
+    #[arg(long = "cone-at", requires = "cone_plot")]
+    pub cone_at: Option<String>,
 }
 
 /// What `simulate` passes on.
@@ -70,7 +86,12 @@ pub fn run(c: &Common<'_>, a: &ScansArgs) -> Result<String, LabError> {
     let mut reports = Vec::new();
     let mut outputs: Vec<(PathBuf, Vec<u8>)> = Vec::new();
     for &rung in &rungs {
-        let opt = super::DeriveOptions { seed: c.seed, fire: a.fire, face_heard_at_1m_deg: a.face_lobe_deg };
+        let opt = super::DeriveOptions {
+            seed: c.seed,
+            fire: a.fire,
+            face_heard_at_1m_deg: a.face_lobe_deg,
+            uncovered: a.uncovered,
+        };
         let d =
             derive(&scans, rung, &inputs, &c.mounts, &opt).map_err(|e| LabError(format!("{}: {e}", path.display())))?;
         let (trace, steps, kept) = run_filters(&d, &view, view.field(), &c.mounts, c.loaded.crc(), c.seed, c.start)
@@ -83,7 +104,25 @@ pub fn run(c: &Common<'_>, a: &ScansArgs) -> Result<String, LabError> {
                 so.insert("map_covers_path".into(), json!((map_covers(g, &d.readings) * 1e4).round() / 1e4));
             }
             o.insert("from_scans".into(), s);
-            o.insert("at_truth".into(), at_truth(&view, &c.mounts, &kept));
+            let mut csv = String::new();
+            o.insert("at_truth".into(), at_truth(&view, &c.mounts, &kept, Some(&mut csv)));
+            if let (Some(p), false) = (&a.at_truth_csv, a.ladder) {
+                outputs.push((p.clone(), csv.into_bytes()));
+            }
+            if let (Some(p), Some(at), false) = (&a.cone_plot, &a.cone_at, a.ladder) {
+                let at = super::cone::parse_at(at).map_err(LabError)?;
+                let png = super::cone::draw(
+                    &view,
+                    &c.mounts,
+                    &scans,
+                    &d.path.scan_times,
+                    &kept,
+                    at,
+                    crate::figure::Format::of(p),
+                )
+                .map_err(LabError)?;
+                outputs.push((p.clone(), png));
+            }
         }
         // Files are written for one rung only (the last with --ladder would overwrite the others).
         if !a.ladder {

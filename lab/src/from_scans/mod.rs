@@ -18,6 +18,7 @@
 //! map's own prediction to the whole laser.
 
 pub mod cli;
+pub mod cone;
 pub mod path;
 pub mod sonar;
 pub mod surfaces;
@@ -89,6 +90,15 @@ pub enum Fire {
     AtScans,
 }
 
+/// What becomes of a transducer the laser did not cover.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum Uncovered {
+    /// Left out of the run (the default: nothing is known of what it would hear).
+    Drop,
+    /// Kept with what its seen rays heard (unseen space taken as empty).
+    Keep,
+}
+
 /// How the ring's readings are derived.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct DeriveOptions {
@@ -99,11 +109,13 @@ pub struct DeriveOptions {
     /// The widest incidence at which a smooth face is heard at 1 m, degrees
     /// (DESIGN §4.9: about ±10°, narrowing with range).
     pub face_heard_at_1m_deg: f64,
+    /// Transducers the laser did not cover.
+    pub uncovered: Uncovered,
 }
 
 impl Default for DeriveOptions {
     fn default() -> Self {
-        Self { seed: 1, fire: Fire::AlongPath, face_heard_at_1m_deg: FACE_HEARD_AT_1M_DEG }
+        Self { seed: 1, fire: Fire::AlongPath, face_heard_at_1m_deg: FACE_HEARD_AT_1M_DEG, uncovered: Uncovered::Drop }
     }
 }
 
@@ -133,8 +145,10 @@ const STREAM_PREDICTED_NOISE: u64 = 0x5C_0003;
 pub struct Derived {
     /// Every firing along the path (covered or not), in firing order.
     pub readings: Vec<SimReading>,
-    /// Per firing: whether the scans covered its main lobe (only those are kept).
+    /// Per firing: whether the scans covered its main lobe.
     pub covered: Vec<bool>,
+    /// What becomes of the others.
+    pub uncovered: Uncovered,
     /// The path.
     pub path: RunPath,
     /// The driver's plan.
@@ -146,9 +160,10 @@ pub struct Derived {
 }
 
 impl Derived {
-    /// The readings that are kept (covered).
+    /// The readings that are kept (covered, or all with [`Uncovered::Keep`]).
     pub fn kept(&self) -> Vec<SimReading> {
-        self.readings.iter().zip(&self.covered).filter(|(_, &c)| c).map(|(r, _)| r.clone()).collect()
+        let all = self.uncovered == Uncovered::Keep;
+        self.readings.iter().zip(&self.covered).filter(|(_, &c)| c || all).map(|(r, _)| r.clone()).collect()
     }
 }
 
@@ -276,7 +291,7 @@ pub fn derive(
         readings.push(r);
         covered.push(c);
     }
-    Ok(Derived { readings, covered, path, plan, surfaces: surfaces.len(), sound })
+    Ok(Derived { readings, covered, uncovered: opt.uncovered, path, plan, surfaces: surfaces.len(), sound })
 }
 
 /// The laser scans as surfaces, each at its time on the path, with the returns `keep` takes.
@@ -446,14 +461,16 @@ pub fn run_filters<M: MapSource>(
 
 /// What the readings say against the map at the true pose: the fraction
 /// confirmed, and the median (reading − prediction) where they nearly
-/// agree (within 0.3 m) — the map's offset from the surfaces.
-pub fn at_truth<M: MapSource>(map: &M, mounts: &[Mount], kept: &[SimReading]) -> Value {
+/// agree (within 0.3 m) — the map's offset from the surfaces. With `csv`,
+/// one row per reading for a user's own tools (`--at-truth-csv`).
+pub fn at_truth<M: MapSource>(map: &M, mounts: &[Mount], kept: &[SimReading], mut csv: Option<&mut String>) -> Value {
     let net = CredenceNet::shipped();
     let params = predict_params(map.buffer_mm());
     let (mut n, mut confirmed, mut echoes) = (0usize, 0usize, 0usize);
     let mut near: Vec<f64> = Vec::new();
-    // A per-reading dump for diagnosis (not a product): ECHOLOC_AT_TRUTH_CSV=FILE.
-    let mut dump = std::env::var_os("ECHOLOC_AT_TRUTH_CSV").and_then(|p| std::fs::File::create(p).ok());
+    if let Some(c) = csv.as_deref_mut() {
+        c.push_str("time_s,transducer,range_mm,predicted_mm,kappa,theta_deg,delta_deg,tolerance_mm,case,source\n");
+    }
     for r in kept {
         let Some(m) = mounts.get(usize::from(r.transducer)) else { continue };
         let pose = Pose {
@@ -464,22 +481,29 @@ pub fn at_truth<M: MapSource>(map: &M, mounts: &[Mount], kept: &[SimReading]) ->
         let Ok((p, _)) = predict_mount(map, &pose, m, &params, &net) else { continue };
         let reading = r.range_mm.map_or(Reading::NoEcho, |range_mm| Reading::Echo { range_mm });
         n += 1;
-        if let Some(f) = dump.as_mut() {
-            use std::io::Write;
-            let _ = writeln!(
-                f,
-                "{},{},{},{},{},{},{},{},{:?},{:?}",
+        if let Some(c) = csv.as_deref_mut() {
+            let opt = |v: Option<String>| v.unwrap_or_default();
+            let source = match r.source {
+                EchoSource::World { kind: EchoKind::Face } => "face",
+                EchoSource::World { kind: EchoKind::InsideCorner } => "inside_corner",
+                EchoSource::World { kind: EchoKind::OutsideEdge } => "outside_edge",
+                EchoSource::Crosstalk => "crosstalk",
+                EchoSource::Noise => "noise",
+                EchoSource::None => "none",
+                _ => "other",
+            };
+            c.push_str(&format!(
+                "{:.6},{},{},{},{},{},{},{},{},{source}\n",
                 r.time_s,
                 r.transducer,
-                r.range_mm.map_or(-1, |v| v as i64),
-                p.map_or(-1, |p| p.range_mm as i64),
-                p.map_or(0.0, |p| p.kappa.to_num::<f64>()),
-                p.map_or(0, |p| p.theta_mdeg),
-                p.map_or(0, |p| p.delta_mdeg),
-                p.map_or(0, |p| p.tolerance_mm),
-                p.map(|p| p.case),
-                r.source
-            );
+                opt(r.range_mm.map(|v| v.to_string())),
+                opt(p.map(|p| p.range_mm.to_string())),
+                opt(p.map(|p| format!("{:.4}", p.kappa.to_num::<f64>()))),
+                opt(p.map(|p| format!("{:.3}", f64::from(p.theta_mdeg) / 1000.0))),
+                opt(p.map(|p| format!("{:.3}", f64::from(p.delta_mdeg) / 1000.0))),
+                opt(p.map(|p| p.tolerance_mm.to_string())),
+                opt(p.map(|p| format!("{:?}", p.case))),
+            ));
         }
         if judge(reading, p.as_ref(), &VerdictConfig::POLAROID) == Verdict::Confirmed {
             confirmed += 1;
@@ -521,9 +545,11 @@ pub fn map_covers(g: &Grid, readings: &[SimReading]) -> f64 {
 /// The derivation's own figures for the report.
 pub fn summary(d: &Derived, run: &LidarRun, rung: Readings) -> Value {
     let n = d.readings.len();
-    let kept = d.covered.iter().filter(|&&c| c).count();
+    let covered = d.covered.iter().filter(|&&c| c).count();
+    let all = d.uncovered == Uncovered::Keep;
+    let kept = if all { n } else { covered };
     let mut kinds = [0usize; 5];
-    for (r, _) in d.readings.iter().zip(&d.covered).filter(|(_, &c)| c) {
+    for (r, _) in d.readings.iter().zip(&d.covered).filter(|(_, &c)| c || all) {
         let k = match r.source {
             EchoSource::World { kind: EchoKind::Face } => 0,
             EchoSource::World { kind: EchoKind::InsideCorner } => 1,
@@ -544,8 +570,9 @@ pub fn summary(d: &Derived, run: &LidarRun, rung: Readings) -> Value {
         "turn_drive_turn_steps": d.path.turn_drive_turn,
         "surfaces": d.surfaces,
         "firings": n,
-        "covered": kept,
-        "covered_fraction": round4(kept as f64 / n.max(1) as f64),
+        "covered": covered,
+        "covered_fraction": round4(covered as f64 / n.max(1) as f64),
+        "kept": kept,
         "echoes": {"face": kinds[0], "inside_corner": kinds[1], "outside_edge": kinds[2], "crosstalk_or_noise": kinds[3], "none": kinds[4]},
     })
 }

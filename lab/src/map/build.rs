@@ -224,7 +224,11 @@ fn build_map_here(
     }
     let data = match field {
         Some((opts, known)) => {
-            let params = PredictParams::new(WindowParams { tb_mm: buffer_mm, ..WindowParams::POLAROID_6500 });
+            let params = PredictParams::new(WindowParams {
+                tb_mm: buffer_mm,
+                delta_max_deg: opts.delta_max_deg,
+                ..WindowParams::POLAROID_6500
+            });
             Some(build_field(&*map, &params, opts, known)?)
         }
         None => None,

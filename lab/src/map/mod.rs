@@ -81,6 +81,9 @@ pub enum MapCmd {
         /// Localization field: the robot's centre keeps this far from obstacles, mm.
         #[arg(long = "field-clearance-mm", default_value_t = FieldOptions::default().clearance_mm)]
         field_clearance_mm: u32,
+        /// Localization field: the prediction's δ_max, degrees.
+        #[arg(long = "field-delta-max-deg", default_value_t = FieldOptions::default().delta_max_deg)]
+        field_delta_max_deg: f32,
         /// No localization field (a smaller blob that cannot localize globally).
         #[arg(long = "no-field")]
         no_field: bool,
@@ -325,6 +328,7 @@ pub fn run(cmd: MapCmd) -> Result<String, LabError> {
             field_dirs,
             field_reach_mm,
             field_clearance_mm,
+            field_delta_max_deg,
             no_field,
         } => {
             let field = FieldOptions {
@@ -332,6 +336,7 @@ pub fn run(cmd: MapCmd) -> Result<String, LabError> {
                 dirs: field_dirs,
                 reach_mm: field_reach_mm,
                 clearance_mm: field_clearance_mm,
+                delta_max_deg: field_delta_max_deg,
             };
             field.validate().map_err(|e| LabError(format!("--{e}")))?;
             let opt =
