@@ -28,6 +28,7 @@
 pub mod cli;
 pub mod msgs;
 pub mod source;
+pub mod write;
 
 use std::collections::BTreeMap;
 use std::fmt;

@@ -7,8 +7,12 @@
 //! to the last field echoloc needs; what follows (an Odometry's covariance
 //! and twist, the `variance` that Range gained in ROS 2 Iron) is left unread,
 //! so every distribution's layout of these types decodes.
+//!
+//! The types that are whole messages as they stand (`Time`, `Header`, `Pose`,
+//! `Transform`, `TfMessage`, …) also serialize: [`super::write`] encodes
+//! them, inside the Range and Odometry it completes itself.
 
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 
 /// The rosbag2 type names echoloc reads.
 pub mod types {
@@ -29,7 +33,7 @@ pub mod types {
 }
 
 /// `builtin_interfaces/msg/Time`.
-#[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
+#[derive(Clone, Copy, Debug, Deserialize, Serialize, PartialEq)]
 pub struct Time {
     pub sec: i32,
     pub nanosec: u32,
@@ -49,7 +53,7 @@ impl Time {
 }
 
 /// `std_msgs/msg/Header`.
-#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[derive(Clone, Debug, Deserialize, Serialize, PartialEq)]
 pub struct Header {
     pub stamp: Time,
     pub frame_id: String,
@@ -82,7 +86,7 @@ pub struct PointCloud {
 }
 
 /// `geometry_msgs/msg/Point`.
-#[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
+#[derive(Clone, Copy, Debug, Deserialize, Serialize, PartialEq)]
 pub struct Point {
     pub x: f64,
     pub y: f64,
@@ -90,7 +94,7 @@ pub struct Point {
 }
 
 /// `geometry_msgs/msg/Quaternion`.
-#[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
+#[derive(Clone, Copy, Debug, Deserialize, Serialize, PartialEq)]
 pub struct Quaternion {
     pub x: f64,
     pub y: f64,
@@ -112,7 +116,7 @@ impl Quaternion {
 }
 
 /// `geometry_msgs/msg/Pose`.
-#[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
+#[derive(Clone, Copy, Debug, Deserialize, Serialize, PartialEq)]
 pub struct Pose {
     pub position: Point,
     pub orientation: Quaternion,
@@ -157,7 +161,7 @@ pub struct LaserScan {
 }
 
 /// `geometry_msgs/msg/Vector3`.
-#[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
+#[derive(Clone, Copy, Debug, Deserialize, Serialize, PartialEq)]
 pub struct Vector3 {
     pub x: f64,
     pub y: f64,
@@ -165,14 +169,14 @@ pub struct Vector3 {
 }
 
 /// `geometry_msgs/msg/Transform`.
-#[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
+#[derive(Clone, Copy, Debug, Deserialize, Serialize, PartialEq)]
 pub struct Transform {
     pub translation: Vector3,
     pub rotation: Quaternion,
 }
 
 /// `geometry_msgs/msg/TransformStamped`.
-#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[derive(Clone, Debug, Deserialize, Serialize, PartialEq)]
 pub struct TransformStamped {
     pub header: Header,
     pub child_frame_id: String,
@@ -180,7 +184,7 @@ pub struct TransformStamped {
 }
 
 /// `tf2_msgs/msg/TFMessage`.
-#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[derive(Clone, Debug, Deserialize, Serialize, PartialEq)]
 pub struct TfMessage {
     pub transforms: Vec<TransformStamped>,
 }
