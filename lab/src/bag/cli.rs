@@ -110,9 +110,15 @@ pub fn ring_json(ring: &[echoloc::predict::Mount]) -> String {
 #[derive(Args)]
 pub struct LogArgs {
     /// The ROS 2 bag: a rosbag2 directory (metadata.yaml) or an .mcap file.
-    #[arg(long = "from-bag")]
-    pub from_bag: PathBuf,
-    /// Where to write the log (CSV, docs/log.md).
+    #[arg(long = "from-bag", required_unless_present = "to_bag", conflicts_with = "to_bag")]
+    pub from_bag: Option<PathBuf>,
+    /// The other way: a plain log (CSV, docs/log.md) written as a ROS 2 bag
+    /// (a new rosbag2 directory, -o), Range topics, /tf_static, /odom and the
+    /// reference as /ground_truth (docs/bags.md, "ROS 2 bags out").
+    #[arg(long = "to-bag", conflicts_with_all = ["ring_out", "ranges", "odom", "reference"])]
+    pub to_bag: Option<PathBuf>,
+    /// Where to write the log (CSV, docs/log.md); with --to-bag, the bag
+    /// directory (it must not exist).
     #[arg(short = 'o', long = "out")]
     pub out: PathBuf,
     /// Also write the ring the log's transducer indices refer to, as a ring
@@ -121,19 +127,35 @@ pub struct LogArgs {
     pub ring_out: Option<PathBuf>,
     /// The ring, when the bag has no /tf_static for its sonar frames
     /// (pioneer16 or a JSON file); a PointCloud's default is pioneer16.
+    /// With --to-bag: the log's ring, default pioneer16.
     #[arg(long)]
     pub ring: Option<String>,
+    /// With --to-bag: the Range messages' min_range, m.
+    #[arg(long = "min-range-m", requires = "to_bag", default_value_t = super::write::POLAROID_MIN_RANGE_M)]
+    pub min_range_m: f64,
+    /// With --to-bag: the Range messages' max_range, m.
+    #[arg(long = "max-range-m", requires = "to_bag", default_value_t = super::write::POLAROID_MAX_RANGE_M)]
+    pub max_range_m: f64,
+    /// With --to-bag: zstd-compressed MCAP chunks.
+    #[arg(long, requires = "to_bag")]
+    pub zstd: bool,
     #[command(flatten)]
     pub topics: BagTopics,
 }
 
-/// `echoloc-lab log --from-bag`: the bag as a plain log; prints a JSON summary.
+/// `echoloc-lab log --from-bag`: the bag as a plain log; `--to-bag`: a log
+/// as a bag. Prints a JSON summary.
 pub fn log_cmd(a: &LogArgs) -> Result<String, LabError> {
+    let from_bag = match (&a.from_bag, &a.to_bag) {
+        (Some(bag), None) => bag,
+        (None, Some(log)) => return to_bag_cmd(a, log),
+        _ => return Err(LabError("log: give --from-bag BAG or --to-bag LOG".into())),
+    };
     check_writable(&a.out)?;
     if let Some(p) = &a.ring_out {
         check_writable(p)?;
     }
-    let bag = load(&a.from_bag, &a.topics, a.ring.as_deref())?;
+    let bag = load(from_bag, &a.topics, a.ring.as_deref())?;
     let mut outputs = vec![(a.out.clone(), crate::log::write(&bag.rows, bag.has_reference()).into_bytes())];
     if let Some(p) = &a.ring_out {
         outputs.push((p.clone(), ring_json(&bag.ring).into_bytes()));
@@ -154,4 +176,34 @@ pub fn log_cmd(a: &LogArgs) -> Result<String, LabError> {
         );
     }
     Ok(serde_json::to_string_pretty(&v).unwrap_or_default())
+}
+
+/// `echoloc-lab log --to-bag LOG -o DIR`: the log on its ring as a rosbag2 bag.
+fn to_bag_cmd(a: &LogArgs, log_path: &std::path::Path) -> Result<String, LabError> {
+    use super::write::{check_new_dir, write_bag, Compression, WriteOptions};
+    let out_err = |e: super::write::WriteError| LabError(format!("-o {}: {e}", a.out.display()));
+    // Before reading the log: a bag is never written over another.
+    check_new_dir(&a.out).map_err(out_err)?;
+    let ring_spec = a.ring.as_deref().unwrap_or("pioneer16");
+    let ring = crate::predict::ring_mounts(ring_spec)?;
+    let log = crate::log::read_file(log_path, ring.len())?;
+    let opt = WriteOptions {
+        min_range_m: a.min_range_m,
+        max_range_m: a.max_range_m,
+        compression: if a.zstd { Compression::Zstd } else { Compression::None },
+        ..WriteOptions::default()
+    };
+    let w = write_bag(&a.out, &log.rows, &ring, &opt)
+        .map_err(|e| LabError(format!("{} -> {}: {e}", log_path.display(), a.out.display())))?;
+    let topics: serde_json::Map<String, Value> =
+        w.topics.iter().map(|(name, ty, n)| (name.clone(), json!({"type": ty, "messages": n}))).collect();
+    Ok(serde_json::to_string_pretty(&json!({
+        "bag": w.dir.display().to_string(),
+        "mcap": w.mcap.display().to_string(),
+        "rows": log.rows.len(),
+        "ring": {"spec": ring_spec, "transducers": ring.len()},
+        "messages": w.messages,
+        "topics": topics,
+    }))
+    .unwrap_or_default())
 }
