@@ -65,6 +65,11 @@ pub struct SimulateArgs {
     /// Writes the run as a Foxglove recording (MCAP, docs/foxglove.md).
     #[arg(long)]
     mcap: Option<PathBuf>,
+    /// Writes the run as a ROS 2 bag (a new rosbag2 directory, MCAP storage,
+    /// docs/bags.md): the rows --log writes as Range topics, the ring on
+    /// /tf_static, /odom and the true pose as /ground_truth.
+    #[arg(long)]
+    bag: Option<PathBuf>,
     /// The EKF without recovery while lost, to measure what it does.
     #[arg(long = "no-recovery")]
     no_recovery: bool,
@@ -136,6 +141,9 @@ pub fn simulate_cmd(a: &SimulateArgs) -> Result<String, LabError> {
     {
         check_writable(p)?;
     }
+    if let Some(b) = &a.bag {
+        crate::bag::write::check_new_dir(b).map_err(|e| LabError(format!("--bag {e}")))?;
+    }
     let start_arg =
         a.start.as_deref().map(|s| localization::parse_start(s, "--start")).transpose().map_err(LabError)?;
     let kidnaps =
@@ -154,6 +162,9 @@ pub fn simulate_cmd(a: &SimulateArgs) -> Result<String, LabError> {
     if a.scans.from_scans.is_some() {
         if a.scenario.is_some() || !a.kidnap.is_empty() {
             return Err(LabError("--from-scans: --scenario and --kidnap do not apply to a lidar run".into()));
+        }
+        if a.bag.is_some() {
+            return Err(LabError("--from-scans: --bag is not written for a lidar run yet".into()));
         }
         let common = crate::from_scans::cli::Common {
             map: &a.map,
@@ -232,7 +243,19 @@ pub fn simulate_cmd(a: &SimulateArgs) -> Result<String, LabError> {
             .map_err(|e| LabError(format!("--mcap: {e}")))?;
         outputs.push((p.clone(), rec.finish().map_err(|e| LabError(format!("--mcap: {e}")))?));
     }
-    write_all(&outputs)?;
+    // The bag is a directory, written whole or not at all; it goes first
+    // and is taken back if a file fails.
+    if let Some(b) = &a.bag {
+        let rows = rows_of(&run.readings, &steps);
+        crate::bag::write::write_bag(b, &rows, &mounts, &Default::default())
+            .map_err(|e| LabError(format!("--bag {e}")))?;
+    }
+    if let Err(e) = write_all(&outputs) {
+        if let Some(b) = &a.bag {
+            let _ = std::fs::remove_dir_all(b);
+        }
+        return Err(e);
+    }
     Ok(if a.json { report.to_string() } else { serde_json::to_string_pretty(&report).unwrap_or_default() })
 }
 
@@ -266,7 +289,12 @@ pub fn start_of(h: &Header) -> filters::Start {
 /// filters read), the cumulative odometry the increments came from, and the
 /// true pose as the reference.
 pub fn log_of(readings: &[SimReading], steps: &[filters::Step]) -> String {
-    let rows: Vec<crate::log::Row> = readings
+    crate::log::write(&rows_of(readings, steps), true)
+}
+
+/// The rows [`log_of`] writes (and `--bag` writes as a ROS 2 bag).
+pub fn rows_of(readings: &[SimReading], steps: &[filters::Step]) -> Vec<crate::log::Row> {
+    readings
         .iter()
         .zip(steps)
         .map(|(r, s)| crate::log::Row {
@@ -280,8 +308,7 @@ pub fn log_of(readings: &[SimReading], steps: &[filters::Step]) -> String {
             reference: Some([r.truth.0, r.truth.1, r.truth.2]),
             line: 0,
         })
-        .collect();
-    crate::log::write(&rows, true)
+        .collect()
 }
 
 pub fn check_writable(p: &Path) -> Result<(), LabError> {
