@@ -28,16 +28,8 @@ use statrs::distribution::{ChiSquared, ContinuousCDF};
 mod depot;
 use depot::Depot;
 
-/// The prediction the committed depot's field was compiled with: the
-/// Polaroid's window with MARGE's δ_max (the lab's field default,
-/// `FieldOptions::delta_max_deg`), so that the readings below are the ones
-/// the field expects.
 fn params(map: &MapView<'_>) -> PredictParams {
-    PredictParams::new(WindowParams {
-        tb_mm: map.buffer_mm(),
-        delta_max_deg: WindowParams::MARGE.delta_max_deg,
-        ..WindowParams::POLAROID_6500
-    })
+    PredictParams::new(WindowParams { tb_mm: map.buffer_mm(), ..WindowParams::POLAROID_6500 })
 }
 
 /// The beam model's textbook mixture, in f64.

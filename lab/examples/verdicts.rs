@@ -45,8 +45,15 @@ fn main() -> Result<(), LabError> {
     let map = loaded.view()?;
     let pose = Pose { x_mm: (x * 1000.0) as f32, y_mm: (y * 1000.0) as f32, heading_rad: th as f32 };
     let mut predicted = vec![None; ring.len()];
-    predict_ring(&map, &pose, &ring, &predict_params(map.buffer_mm()), &CredenceNet::shipped(), &mut predicted)
-        .map_err(|e| LabError(format!("prediction: {e}")))?;
+    predict_ring(
+        &map,
+        &pose,
+        &ring,
+        &predict_params(map.buffer_mm(), map.field()),
+        &CredenceNet::shipped(),
+        &mut predicted,
+    )
+    .map_err(|e| LabError(format!("prediction: {e}")))?;
     println!("transducer  predicted (mm)  kappa  reading (mm)  verdict");
     for (i, (p, r)) in predicted.iter().zip(&readings).enumerate() {
         let verdict = judge(*r, p.as_ref(), &VerdictConfig::POLAROID);

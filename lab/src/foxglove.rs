@@ -379,7 +379,8 @@ pub fn record<M: MapSource>(
 type Window = (f64, f64, f64);
 
 fn window_of(buffer_mm: u32) -> Window {
-    let w = predict_params(buffer_mm).window;
+    // R_min, R_max and θ_o do not depend on the map's lobe.
+    let w = predict_params(buffer_mm, &echoloc::map::FieldView::EMPTY).window;
     (f64::from(w.r_min_mm) / 1000.0, f64::from(w.r_max_mm) / 1000.0, f64::from(w.half_angle_deg).to_radians())
 }
 

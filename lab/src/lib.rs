@@ -41,7 +41,7 @@
 //! let ring = echoloc_lab::ring::load("pioneer16")?;
 //! let pose = Pose { x_mm: 2000.0, y_mm: 1500.0, heading_rad: 0.3 };
 //! let mut predicted = vec![None; ring.len()];
-//! predict_ring(&map, &pose, &ring, &predict_params(map.buffer_mm()), &CredenceNet::shipped(), &mut predicted)
+//! predict_ring(&map, &pose, &ring, &predict_params(map.buffer_mm(), map.field()), &CredenceNet::shipped(), &mut predicted)
 //!     .map_err(|e| e.to_string())?;
 //! let verdict = judge(Reading::Echo { range_mm: 1234 }, predicted[0].as_ref(), &VerdictConfig::POLAROID);
 //! println!("{verdict:?}");

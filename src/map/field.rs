@@ -372,6 +372,16 @@ impl<'a> FieldView<'a> {
         self.header.nodes == 0
     }
 
+    /// The δ_max, degrees, the field's predictions were made with: how far
+    /// off its normal a face of this map still echoes, the map's own lobe
+    /// (`None`: no field, or none recorded). The tracker predicts with it
+    /// too (`WindowParams::with_map_lobe`), so the particles and the EKF
+    /// hear the map alike.
+    pub fn delta_max_deg(&self) -> Option<f32> {
+        let d = self.header.delta_max_mdeg;
+        (!self.is_empty() && d > 0 && d < 90_000).then(|| d as f32 / 1000.0)
+    }
+
     /// Headings per node.
     pub fn dirs(&self) -> u32 {
         self.header.dirs

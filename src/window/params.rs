@@ -112,13 +112,27 @@ impl WindowParams {
     /// of a Pioneer ring; the verdicts' `VerdictConfig::POLAROID` judges
     /// from the same range). The credence net's input domain starts at
     /// 500 mm: nearer ranges are rated as 500 mm, where an echo is weaker.
+    pub const POLAROID_6500: WindowParams = WindowParams { r_min_mm: 408, ..WindowParams::MARGE };
+
+    /// These parameters with the δ_max of the map whose localization
+    /// field is `field`, when it has one: a building's faces echo within
+    /// their own lobe (a painted wall is a mirror at 49 kHz, heard within
+    /// about ±10° of its normal, DESIGN §4.9; `map import --walls lines`
+    /// compiles real buildings with 8°), and the map says which.
     ///
-    /// `δ_max` is the Polaroid's, not MARGE's 15°: a smooth face echoes
-    /// only within about ±10° of its normal at 1 m, narrowing with range
-    /// (DESIGN §4.9, after Kuc and Siegel), so a face predicted further off
-    /// its normal is one the transducer does not hear (issue #35:
-    /// `docs/real-buildings.md`, where 9° and more lose a building).
-    pub const POLAROID_6500: WindowParams = WindowParams { r_min_mm: 408, delta_max_deg: 8.0, ..WindowParams::MARGE };
+    /// ```
+    /// use echoloc::map::FieldView;
+    /// use echoloc::window::WindowParams;
+    /// // A map without a field keeps the window's own δ_max.
+    /// let w = WindowParams::POLAROID_6500.with_map_lobe(&FieldView::EMPTY);
+    /// assert_eq!(w.delta_max_deg, 15.0);
+    /// ```
+    pub fn with_map_lobe(self, field: &crate::map::FieldView<'_>) -> Self {
+        match field.delta_max_deg() {
+            Some(d) => WindowParams { delta_max_deg: d, ..self },
+            None => self,
+        }
+    }
 
     /// Checks every field.
     pub fn validate(&self) -> Result<(), WindowError> {

@@ -64,10 +64,10 @@ pub fn scenario_partition() -> Option<&'static [u8]> {
     Some(unsafe { core::slice::from_raw_parts(SCENARIO_PARTITION as *const u8, len) })
 }
 
-/// The loop's settings on this board for `map`.
+/// The loop's settings on this board for `map` (its own face lobe, from its field).
 pub fn setup(map: &MapView<'_>) -> Option<ReplaySetup<TRANSDUCERS>> {
-    ReplaySetup::standard(PredictParams::new(WindowParams { tb_mm: map.buffer_mm(), ..WindowParams::POLAROID_6500 }))
-        .ok()
+    let window = WindowParams { tb_mm: map.buffer_mm(), ..WindowParams::POLAROID_6500 }.with_map_lobe(map.field());
+    ReplaySetup::standard(PredictParams::new(window)).ok()
 }
 
 /// What a replay on the board measured.

@@ -272,11 +272,15 @@ impl embedded_io::Write for HostPort {
     }
 }
 
-/// The window and prediction settings for a map buffered by `tb_mm`: MARGE's
-/// window (`R_max` 5.5 m, as the module listens), exact beacon collection,
-/// τ_κ = 0.5, the Polaroid's 30 mm + 1 % tolerance, `R_min` at its blanking.
-pub fn predict_params(tb_mm: u32) -> PredictParams {
-    PredictParams::new(WindowParams { tb_mm, ..WindowParams::POLAROID_6500 })
+/// The window and prediction settings for `map`: MARGE's window (`R_max`
+/// 5.5 m, as the module listens) with the map's buffer and face lobe
+/// (`WindowParams::with_map_lobe`), exact beacon collection, τ_κ = 0.5, the
+/// Polaroid's 30 mm + 1 % tolerance, `R_min` at its blanking.
+pub fn predict_params(map: &echoloc::map::MapView<'_>) -> PredictParams {
+    use echoloc::map::MapSource;
+    PredictParams::new(
+        WindowParams { tb_mm: map.buffer_mm(), ..WindowParams::POLAROID_6500 }.with_map_lobe(map.field()),
+    )
 }
 
 /// The verdict settings of this module: the core's Polaroid defaults with

@@ -104,7 +104,7 @@ fn main() -> ! {
     let Ok(map) = MapView::new(&BLOB.0) else {
         panic!("the office map blob was refused");
     };
-    let params = predict_params(map.buffer_mm());
+    let params = predict_params(&map);
     let net = credence();
     // The localizer's one copy (21 KiB at 1 024 particles), in this frame for
     // the program's life; the controller borrows it.

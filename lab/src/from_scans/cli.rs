@@ -35,10 +35,12 @@ pub struct ScansArgs {
     /// or at-scans (the whole ring once per scan, as sparse real logs keep it).
     #[arg(long, value_enum, default_value = "along-path", requires = "from_scans")]
     pub fire: super::Fire,
-    /// The widest incidence at which a smooth face is heard at 1 m, degrees
-    /// (DESIGN §4.9: about 10; the lobe narrows with range).
-    #[arg(long = "face-lobe-deg", default_value_t = super::FACE_HEARD_AT_1M_DEG, requires = "from_scans")]
-    pub face_lobe_deg: f64,
+    /// The derived sonar's physics: the widest incidence at which a smooth
+    /// face is heard at 1 m, degrees (DESIGN §4.9: about 10; the lobe
+    /// narrows with range). Not the map's --face-lobe-deg, which is what
+    /// echoloc predicts with.
+    #[arg(long = "heard-face-deg", default_value_t = super::FACE_HEARD_AT_1M_DEG, requires = "from_scans")]
+    pub heard_face_deg: f64,
     /// Readings of transducers the laser did not cover (their main lobe
     /// less than 90 % seen): drop (left out of the run) or keep (what the
     /// seen rays heard; unseen space taken as empty). A board's scenario
@@ -89,7 +91,7 @@ pub fn run(c: &Common<'_>, a: &ScansArgs) -> Result<String, LabError> {
         let opt = super::DeriveOptions {
             seed: c.seed,
             fire: a.fire,
-            face_heard_at_1m_deg: a.face_lobe_deg,
+            face_heard_at_1m_deg: a.heard_face_deg,
             uncovered: a.uncovered,
         };
         let d =

@@ -123,8 +123,8 @@ pub fn parse_at(s: &str) -> Result<(f64, u8), String> {
 }
 
 /// The figure of transducer `at.1`'s first kept reading at or after `at.0` s.
-pub fn draw<M: MapSource>(
-    map: &M,
+pub fn draw(
+    map: &echoloc::map::MapView<'_>,
     mounts: &[Mount],
     run: &LidarRun,
     scan_times: &[f64],
@@ -160,7 +160,7 @@ pub fn draw<M: MapSource>(
         })
         .filter(|v| v.iter().any(|p| (p.0 - apex.0).abs() <= HALF_M && (p.1 - apex.1).abs() <= HALF_M))
         .collect();
-    let params = predict_params(map.buffer_mm());
+    let params = predict_params(map.buffer_mm(), map.field());
     let pose = Pose { x_mm: (x * 1000.0) as f32, y_mm: (y * 1000.0) as f32, heading_rad: h as f32 };
     let (p, _) = predict_mount(map, &pose, m, &params, &CredenceNet::shipped()).map_err(|e| format!("{e:?}"))?;
     let fig = Cone {

@@ -184,7 +184,7 @@ pub fn derive(
 ) -> Result<Derived, String> {
     let seed = opt.seed;
     if !(opt.face_heard_at_1m_deg > 0.0 && opt.face_heard_at_1m_deg <= 60.0) {
-        return Err(format!("--face-lobe-deg {}: expected more than 0 and at most 60", opt.face_heard_at_1m_deg));
+        return Err(format!("--heard-face-deg {}: expected more than 0 and at most 60", opt.face_heard_at_1m_deg));
     }
     if run.scans.len() < 2 {
         return Err("a run needs at least two scans".into());
@@ -237,7 +237,7 @@ pub fn derive(
     };
     let ears = sonar::Ears { surfaces: &surfaces, beam: &beam, plan: &plan, seed };
     let net = CredenceNet::shipped();
-    let params = predict_params(map.view.buffer_mm());
+    let params = predict_params(map.view.buffer_mm(), map.view.field());
     let sound = plan.module.sound();
     let one = |k: usize| -> Result<(SimReading, bool), String> {
         let (c, s, t) = firings[k];
@@ -463,9 +463,9 @@ pub fn run_filters<M: MapSource>(
 /// confirmed, and the median (reading − prediction) where they nearly
 /// agree (within 0.3 m) — the map's offset from the surfaces. With `csv`,
 /// one row per reading for a user's own tools (`--at-truth-csv`).
-pub fn at_truth<M: MapSource>(map: &M, mounts: &[Mount], kept: &[SimReading], mut csv: Option<&mut String>) -> Value {
+pub fn at_truth(map: &MapView<'_>, mounts: &[Mount], kept: &[SimReading], mut csv: Option<&mut String>) -> Value {
     let net = CredenceNet::shipped();
-    let params = predict_params(map.buffer_mm());
+    let params = predict_params(map.buffer_mm(), map.field());
     let (mut n, mut confirmed, mut echoes) = (0usize, 0usize, 0usize);
     let mut near: Vec<f64> = Vec::new();
     if let Some(c) = csv.as_deref_mut() {

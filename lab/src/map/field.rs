@@ -29,18 +29,25 @@ pub struct FieldOptions {
     pub reach_mm: u32,
     /// Free nodes keep this distance from every obstacle, mm.
     pub clearance_mm: u32,
-    /// The prediction's δ_max for the field, degrees: MARGE's 15° by
-    /// default, wider than the tracker's Polaroid lobe (8°,
-    /// `WindowParams::POLAROID_6500`). The particles' beam model is robust
-    /// to an echo the field expects and the sonar does not give (a miss
-    /// costs 0.1), not to the truth's faces left out of the field: with the
-    /// tracker's 8° the depot's find-itself run (seed 6) is never found,
-    /// with 15° at 2.9 m (docs/real-buildings.md).
+    /// The map's face lobe: the prediction's δ_max, degrees, for the field
+    /// and, recorded in it, for the tracker (`WindowParams::with_map_lobe`).
+    /// [`FIELD_DELTA_MAX_DEG`] (MARGE's 15°) by default; `map import --walls
+    /// lines` (real buildings) takes [`SMOOTH_FACE_LOBE_DEG`].
     pub delta_max_deg: f32,
 }
 
-/// The field's δ_max by default, degrees ([`FieldOptions::delta_max_deg`]).
+/// A map's face lobe by default, degrees ([`FieldOptions::delta_max_deg`]):
+/// MARGE's δ_max, the paper's, which the simulator's faces (heard to about
+/// 30° at 1 m) also satisfy.
 pub const FIELD_DELTA_MAX_DEG: f32 = 15.0;
+
+/// The face lobe of a real building, degrees: a painted wall is a mirror at
+/// 49 kHz, heard by a Polaroid only within about ±10° of its normal at 1 m,
+/// narrowing with range (DESIGN §4.9, after Kuc and Siegel). Measured on the
+/// shared buildings' ladder (docs/real-buildings.md): 9° and more lose the
+/// ACES map rung, 15° loses the Intel laser rung with the ring fired at
+/// the scans; 7° and 8° hold every rung.
+pub const SMOOTH_FACE_LOBE_DEG: f32 = 8.0;
 
 impl Default for FieldOptions {
     /// 250 mm nodes, 64 headings (5.6°), reach 400 mm (a Pioneer's ring is

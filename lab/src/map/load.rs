@@ -102,6 +102,10 @@ pub struct GridArgs {
     /// With --walls lines: most distance, mm, from a surface cell's centre to its wall (0: one cell).
     #[arg(long = "line-tolerance-mm", default_value_t = 0)]
     pub line_tolerance_mm: u32,
+    /// A .yaml map's face lobe, degrees (default 8 with --walls lines, else 15):
+    /// `map import --face-lobe-deg`.
+    #[arg(long = "face-lobe-deg")]
+    pub face_lobe_deg: Option<f32>,
 }
 
 impl GridArgs {
@@ -110,6 +114,7 @@ impl GridArgs {
         let mut o = LoadOptions::buffer(buffer_mm);
         o.import.walls = self.walls;
         o.import.line_tolerance_mm = self.line_tolerance_mm;
+        o.import.face_lobe_deg = self.face_lobe_deg;
         if !field {
             o.import.field = None;
         }

@@ -81,9 +81,11 @@ pub enum MapCmd {
         /// Localization field: the robot's centre keeps this far from obstacles, mm.
         #[arg(long = "field-clearance-mm", default_value_t = FieldOptions::default().clearance_mm)]
         field_clearance_mm: u32,
-        /// Localization field: the prediction's δ_max, degrees.
-        #[arg(long = "field-delta-max-deg", default_value_t = FieldOptions::default().delta_max_deg)]
-        field_delta_max_deg: f32,
+        /// The map's face lobe: how far off its normal a face still echoes,
+        /// degrees; the prediction's δ_max for the field and for the tracker
+        /// (default 8 with --walls lines, real buildings; else 15).
+        #[arg(long = "face-lobe-deg")]
+        face_lobe_deg: Option<f32>,
         /// No localization field (a smaller blob that cannot localize globally).
         #[arg(long = "no-field")]
         no_field: bool,
@@ -238,6 +240,9 @@ pub struct ImportOptions {
     pub walls: Walls,
     /// Occupancy grids with `Walls::Lines`: the deviation bound, mm (0: one cell).
     pub line_tolerance_mm: u32,
+    /// The map's face lobe, degrees (`FieldOptions::delta_max_deg`; `None`:
+    /// [`field::SMOOTH_FACE_LOBE_DEG`] with `Walls::Lines`, else the field's own).
+    pub face_lobe_deg: Option<f32>,
     /// The localization field (`None`: a blob without one, which cannot
     /// localize globally).
     pub field: Option<FieldOptions>,
@@ -250,6 +255,7 @@ impl Default for ImportOptions {
             unknown: Unknown::Free,
             walls: Walls::Contour,
             line_tolerance_mm: 0,
+            face_lobe_deg: None,
             field: Some(FieldOptions::default()),
         }
     }
@@ -265,7 +271,13 @@ pub fn compile_source(
 ) -> Result<(Vec<u8>, MapSummary), String> {
     let known = src.grid.as_ref().map(|g| move |x: f64, y: f64| g.known_free_at(x, y));
     let known_ref = known.as_ref().map(|f| f as &(dyn Fn(f64, f64) -> bool + Sync));
-    build_map_with(&src.shapes, buffer_mm, cell_mm, opt.field.as_ref().map(|f| (f, known_ref)))
+    let field = opt.field.map(|f| FieldOptions { delta_max_deg: face_lobe(opt).unwrap_or(f.delta_max_deg), ..f });
+    build_map_with(&src.shapes, buffer_mm, cell_mm, field.as_ref().map(|f| (f, known_ref)))
+}
+
+/// The face lobe `opt` asks for: given, or a real building's with straight walls.
+fn face_lobe(opt: &ImportOptions) -> Option<f32> {
+    opt.face_lobe_deg.or((opt.walls == Walls::Lines).then_some(field::SMOOTH_FACE_LOBE_DEG))
 }
 
 /// What was read: the shapes, the grid they came from (for ROS maps), and
@@ -328,7 +340,7 @@ pub fn run(cmd: MapCmd) -> Result<String, LabError> {
             field_dirs,
             field_reach_mm,
             field_clearance_mm,
-            field_delta_max_deg,
+            face_lobe_deg,
             no_field,
         } => {
             let field = FieldOptions {
@@ -336,11 +348,22 @@ pub fn run(cmd: MapCmd) -> Result<String, LabError> {
                 dirs: field_dirs,
                 reach_mm: field_reach_mm,
                 clearance_mm: field_clearance_mm,
-                delta_max_deg: field_delta_max_deg,
+                delta_max_deg: FieldOptions::default().delta_max_deg,
             };
             field.validate().map_err(|e| LabError(format!("--{e}")))?;
-            let opt =
-                ImportOptions { simplify_mm, unknown, walls, line_tolerance_mm, field: (!no_field).then_some(field) };
+            let opt = ImportOptions {
+                simplify_mm,
+                unknown,
+                walls,
+                line_tolerance_mm,
+                face_lobe_deg,
+                field: (!no_field).then_some(field),
+            };
+            if let Some(d) = face_lobe_deg {
+                FieldOptions { delta_max_deg: d, ..field }
+                    .validate()
+                    .map_err(|e| LabError(format!("--face-lobe-deg: {e}")))?;
+            }
             let (blob, summary, src) = import(&input, buffer_mm, cell_mm, &opt)?;
             // Everything is computed before anything is written.
             let png = match &preview {

@@ -10,6 +10,7 @@ use serde_json::{json, Value};
 
 use super::filters::predict_params_with;
 use super::world::{EchoKind, EchoSource, SimReading};
+use echoloc::map::FieldView;
 
 /// The agreement counts.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -88,13 +89,14 @@ impl Agreement {
 /// carry the nearer-surface check (without it none is ambiguous).
 pub fn measure<M: MapSource>(
     map: &M,
+    field: &FieldView<'_>,
     mounts: &[Mount],
     readings: &[SimReading],
     kappa_min: f32,
     nearer_check: bool,
 ) -> Agreement {
     let net = CredenceNet::shipped();
-    let params = predict_params_with(map.buffer_mm(), nearer_check);
+    let params = predict_params_with(map.buffer_mm(), field, nearer_check);
     let mut a = Agreement::default();
     for r in readings.iter().filter(|r| r.consistent && !matches!(r.source, EchoSource::Crosstalk | EchoSource::Noise))
     {

@@ -309,15 +309,16 @@ pub fn steps_of_records(header: &Header, records: &[Record]) -> Result<Vec<Step>
 }
 
 /// The prediction settings of the boards: the Polaroid 6500's window on the
-/// map's buffer (`buffer_mm`).
-pub fn predict_params(buffer_mm: u32) -> PredictParams {
-    PredictParams::new(WindowParams { tb_mm: buffer_mm, ..WindowParams::POLAROID_6500 })
+/// map's buffer (`buffer_mm`) and its face lobe, from its localization
+/// `field` (`WindowParams::with_map_lobe`).
+pub fn predict_params(buffer_mm: u32, field: &FieldView<'_>) -> PredictParams {
+    PredictParams::new(WindowParams { tb_mm: buffer_mm, ..WindowParams::POLAROID_6500 }.with_map_lobe(field))
 }
 
 /// [`predict_params`], without the nearer-surface check unless
 /// `nearer_check` (off only to measure what it does).
-pub fn predict_params_with(buffer_mm: u32, nearer_check: bool) -> PredictParams {
-    let mut params = predict_params(buffer_mm);
+pub fn predict_params_with(buffer_mm: u32, field: &FieldView<'_>, nearer_check: bool) -> PredictParams {
+    let mut params = predict_params(buffer_mm, field);
     if !nearer_check {
         params.nearer_delta_deg = None;
     }
@@ -361,7 +362,7 @@ fn run_with<M: MapSource, const N: usize>(
     progress: &mut dyn FnMut(f64),
 ) -> Result<Trace, String> {
     let net = CredenceNet::shipped();
-    let params = predict_params_with(map.buffer_mm(), start.nearer_check);
+    let params = predict_params_with(map.buffer_mm(), field, start.nearer_check);
     let verdicts = VerdictConfig::POLAROID;
     let mut cfg = EkfConfig::DEFAULT;
     if !start.recovery {

@@ -211,7 +211,7 @@ pub fn simulate_cmd(a: &SimulateArgs) -> Result<String, LabError> {
         .map_err(|e| LabError(format!("{}: {e}", a.map.display())))?;
     bar.finish();
     let mut report = report(&trace, Some(&run));
-    let agreement = agreement::measure(&map, &mounts, &run.readings, AGREEMENT_KAPPA, !a.no_nearer_check);
+    let agreement = agreement::measure(&map, map.field(), &mounts, &run.readings, AGREEMENT_KAPPA, !a.no_nearer_check);
     if let Some(o) = report.as_object_mut() {
         o.insert("agreement".into(), agreement.json());
         let kidnaps: Vec<f64> = run.kidnaps.iter().map(|k| k.0).collect();

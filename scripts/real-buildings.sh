@@ -1,0 +1,49 @@
+#!/usr/bin/env bash
+# The real buildings' figures of docs/real-buildings.md (issue #35): for each
+# shared lidar run, the map a SLAM user would make of one pass, the sonar run
+# derived from another pass, and the ladder (predicted, map, mapped-laser,
+# laser) with the ring fired along the path and at the scans; then from no
+# pose. Writes the maps to target/real-buildings/ and prints the tables.
+#
+#   bash scripts/real-buildings.sh            # both buildings, every table (a few minutes)
+#   bash scripts/real-buildings.sh --short    # CI's short case: 60 scans of the Intel run
+#   WALLS=contour bash scripts/real-buildings.sh   # the maps' outlines round the cells instead
+set -euo pipefail
+cd "$(dirname "$0")/.."
+data=../shared/data/real
+if [ ! -f "$data/intel-corrected.log.gz" ]; then
+  echo "missing $data/intel-corrected.log.gz: check out the project's shared/ folder beside this repository" >&2
+  exit 1
+fi
+cargo build -q --release -p echoloc-lab
+L=./target/release/echoloc-lab
+out=target/real-buildings
+mkdir -p "$out"
+walls=${WALLS:-lines}
+
+# name, run file, the map's pass, the run's pass (scan indices): the map
+# covers the run (docs/real-buildings.md says how the splits were chosen).
+splits=("intel intel-corrected.log.gz 228: 0:228" "aces aces-corrected.log.gz :300,400: 300:400")
+if [ "${1:-}" = "--short" ]; then
+  splits=("intel intel-corrected.log.gz 60: 0:60")
+fi
+
+for s in "${splits[@]}"; do
+  set -- $s
+  name=$1 run=$data/$2 map_pass=$3 run_pass=$4
+  $L map from-scans "$run" --pass "$map_pass" -o "$out/$name.yaml" >/dev/null
+  for fire in along-path at-scans; do
+    echo "## $name: map from scans $map_pass, run on $run_pass, --walls $walls, --fire $fire"
+    $L simulate --from-scans "$run" --pass "$run_pass" --map "$out/$name.yaml" --walls "$walls" --fire "$fire" --ladder
+    echo
+  done
+  echo "## $name: from no pose (laser, along the path)"
+  $L simulate --from-scans "$run" --pass "$run_pass" --map "$out/$name.yaml" --walls "$walls" --start unknown --json |
+    python3 -c "
+import json, sys
+r = json.load(sys.stdin); l = r['localization']; f = l['first_convergence']
+print('found within %s m; wrong hand-offs %d; far-off cycles %.1f %%, of those reported searching or lost %s; final error %s m' % (
+    '%.1f' % f['distance_m'] if f else 'never', len(l['wrong_handoffs']), 100 * (l['off_fraction'] or 0),
+    '–' if l['off_cycles_known'] is None else '%.1f %%' % (100 * l['off_cycles_known']), l['final_error_m']))"
+  echo
+done
