@@ -57,6 +57,9 @@ pub struct ScansArgs {
     /// The firing: T_s:TRANSDUCER, the transducer's first reading from T_s on.
     #[arg(long = "cone-at", requires = "cone_plot")]
     pub cone_at: Option<String>,
+    /// A ROS 2 bag's topics and frames (a CARMEN log has none).
+    #[command(flatten, next_help_heading = "A lidar bag (--from-scans)")]
+    pub bag: crate::lidar::bag::LaserBagArgs,
 }
 
 /// What `simulate` passes on.
@@ -71,13 +74,19 @@ pub struct Common<'a> {
     pub plot: Option<PathBuf>,
     pub trace: Option<PathBuf>,
     pub mcap: Option<PathBuf>,
+    /// A ROS 2 bag directory to write the run to.
+    pub bag: Option<PathBuf>,
 }
 
 /// Runs one rung, or the ladder.
 pub fn run(c: &Common<'_>, a: &ScansArgs) -> Result<String, LabError> {
     let Some(path) = &a.from_scans else { return Err(LabError("--from-scans: give a run".into())) };
+    let files = [&c.log, &c.plot, &c.trace, &c.mcap, &c.bag, &a.at_truth_csv, &a.cone_plot];
+    if a.ladder && files.iter().any(|f| f.is_some()) {
+        return Err(LabError("--ladder writes no files: give one rung (--readings) to write a run's files".into()));
+    }
     let pass = crate::lidar::Pass::parse(&a.pass)?;
-    let scans = crate::lidar::read(path)?.pass(pass)?;
+    let scans = crate::lidar::read_with(path, &a.bag.options())?.pass(pass)?;
     let view = c.loaded.view()?;
     let grid = match c.loaded.kind() {
         crate::map::MapKind::RosMapServer => Some(crate::map::ros::load(c.map)?),
@@ -87,6 +96,7 @@ pub fn run(c: &Common<'_>, a: &ScansArgs) -> Result<String, LabError> {
     let rungs: Vec<Readings> = if a.ladder { Readings::ALL.to_vec() } else { vec![a.readings] };
     let mut reports = Vec::new();
     let mut outputs: Vec<(PathBuf, Vec<u8>)> = Vec::new();
+    let mut bag_rows: Option<Vec<crate::log::Row>> = None;
     for &rung in &rungs {
         let opt = super::DeriveOptions {
             seed: c.seed,
@@ -131,6 +141,9 @@ pub fn run(c: &Common<'_>, a: &ScansArgs) -> Result<String, LabError> {
             if let Some(p) = &c.log {
                 outputs.push((p.clone(), crate::simulate::log_of(&kept, &steps).into_bytes()));
             }
+            if c.bag.is_some() {
+                bag_rows = Some(crate::simulate::rows_of(&kept, &steps));
+            }
             if let Some(p) = &c.trace {
                 outputs.push((p.clone(), crate::simulate::localization::trace_csv(&trace).into_bytes()));
             }
@@ -149,7 +162,18 @@ pub fn run(c: &Common<'_>, a: &ScansArgs) -> Result<String, LabError> {
         }
         reports.push((rung, r, trace));
     }
-    crate::simulate::write_all(&outputs)?;
+    // The bag is a directory, written whole or not at all; it goes first
+    // and is taken back if a file fails.
+    if let (Some(b), Some(rows)) = (&c.bag, &bag_rows) {
+        crate::bag::write::write_bag(b, rows, &c.mounts, &Default::default())
+            .map_err(|e| LabError(format!("--bag {e}")))?;
+    }
+    if let Err(e) = crate::simulate::write_all(&outputs) {
+        if let Some(b) = &c.bag {
+            let _ = std::fs::remove_dir_all(b);
+        }
+        return Err(e);
+    }
     if !a.ladder {
         let r = &reports[0].1;
         return Ok(if c.json { r.to_string() } else { serde_json::to_string_pretty(r).unwrap_or_default() });

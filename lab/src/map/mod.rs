@@ -121,6 +121,9 @@ pub enum MapCmd {
         /// Beams are used up to this range, m (beyond, they clear cells up to it).
         #[arg(long = "max-range-m", default_value_t = crate::lidar::grid::GridOptions::default().max_range_m)]
         max_range_m: f64,
+        /// A ROS 2 bag's topics and frames (a CARMEN log has none).
+        #[command(flatten, next_help_heading = "A lidar bag")]
+        bag: crate::lidar::bag::LaserBagArgs,
     },
     /// Print the summary of a map blob after loading it exactly as the firmware does.
     Info {
@@ -384,9 +387,9 @@ pub fn run(cmd: MapCmd) -> Result<String, LabError> {
             }
             Ok(summary.to_json())
         }
-        MapCmd::FromScans { run, out, pass, resolution_m, max_range_m } => {
+        MapCmd::FromScans { run, out, pass, resolution_m, max_range_m, bag } => {
             let passes = crate::lidar::parse_passes(&pass)?;
-            let scans = crate::lidar::read(&run)?.passes(&passes)?;
+            let scans = crate::lidar::read_with(&run, &bag.options())?.passes(&passes)?;
             let opt = crate::lidar::grid::GridOptions { resolution_m, max_range_m, ..Default::default() };
             let g = crate::lidar::grid::build(&scans, &opt).map_err(|e| LabError(format!("{}: {e}", run.display())))?;
             let image = crate::lidar::grid::write(&g, &out)?;

@@ -163,9 +163,6 @@ pub fn simulate_cmd(a: &SimulateArgs) -> Result<String, LabError> {
         if a.scenario.is_some() || !a.kidnap.is_empty() {
             return Err(LabError("--from-scans: --scenario and --kidnap do not apply to a lidar run".into()));
         }
-        if a.bag.is_some() {
-            return Err(LabError("--from-scans: --bag is not written for a lidar run yet".into()));
-        }
         let common = crate::from_scans::cli::Common {
             map: &a.map,
             seed: a.seed,
@@ -177,6 +174,7 @@ pub fn simulate_cmd(a: &SimulateArgs) -> Result<String, LabError> {
             plot: a.plot.clone(),
             trace: a.trace.clone(),
             mcap: a.mcap.clone(),
+            bag: a.bag.clone(),
         };
         return crate::from_scans::cli::run(&common, &a.scans);
     }

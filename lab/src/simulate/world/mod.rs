@@ -44,7 +44,7 @@ pub use run::{EchoKind, EchoSource, SimReading, SimRun};
 // and the agreement tolerance (the simulate command need not name them).
 #[allow(unused_imports)]
 pub use config::OdometryModel;
-pub use motion::{Odometry, OdometryErrors, Trajectory};
+pub use motion::{Odometry, OdometryErrors, Trajectory, ODOMETRY_DT_S};
 #[allow(unused_imports)]
 pub use run::{Clutter, CONSISTENT_FIXED_MM, CONSISTENT_FRACTION};
 pub use sonar::{point_key, Beam, Draws, Listener, FAN_HALF_DEG, RAY_STEP_DEG, SPECULAR_WIDTH_DEG};
