@@ -580,3 +580,66 @@ pub fn summary(d: &Derived, run: &LidarRun, rung: Readings) -> Value {
 fn round4(v: f64) -> f64 {
     (v * 1e4).round() / 1e4
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::map::ros::{MapYaml, Mode};
+
+    #[test]
+    fn grid_cast_meets_the_first_occupied_cell_as_a_brute_force_does() {
+        // 5 cm cells, origin (−1, −1), a scatter of occupied cells.
+        let (w, h) = (60usize, 50usize);
+        let mut cells = vec![Cell::Free; w * h];
+        let mut x = 0x9E37_79B9_7F4A_7C15u64;
+        for _ in 0..120 {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            cells[(x % (w * h) as u64) as usize] = Cell::Occupied;
+        }
+        let yaml = MapYaml {
+            image: "x.pgm".into(),
+            resolution: 0.05,
+            origin: [-1.0, -1.0, 0.0],
+            negate: false,
+            occupied_thresh: 0.65,
+            free_thresh: 0.196,
+            mode: Mode::Trinary,
+        };
+        let g = Grid { width: w, height: h, cells, yaml };
+        let occupied = |p: (f64, f64)| {
+            let c = ((p.0 + 1.0) / 0.05).floor();
+            let r = ((p.1 + 1.0) / 0.05).floor();
+            c >= 0.0
+                && r >= 0.0
+                && c < w as f64
+                && r < h as f64
+                && g.at(c as usize, h - 1 - r as usize) == Cell::Occupied
+        };
+        let o = (0.512, 0.237);
+        if occupied(o) {
+            return;
+        }
+        for k in 0..360 {
+            let a = f64::from(k).to_radians() + 0.001;
+            let d = (a.cos(), a.sin());
+            // The brute force: 0.1 mm steps.
+            let mut brute = None;
+            let mut t = 0.0;
+            while t <= 3.0 {
+                if occupied((o.0 + d.0 * t, o.1 + d.1 * t)) {
+                    brute = Some(t);
+                    break;
+                }
+                t += 1e-4;
+            }
+            let got = grid_cast(&g, o, d, 3.0);
+            match (got, brute) {
+                (Some(a), Some(b)) => assert!((a - b).abs() < 2e-4, "{k}°: {a} against {b}"),
+                (None, None) => {}
+                _ => panic!("{k}°: {got:?} against {brute:?}"),
+            }
+        }
+    }
+}

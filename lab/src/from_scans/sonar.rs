@@ -161,3 +161,76 @@ impl Ears<'_> {
 fn ray_angle(i: usize) -> f64 {
     -FAN_HALF_DEG + i as f64 * RAY_STEP_DEG
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::from_scans::surfaces::Surfaces;
+    use crate::lidar::Scan;
+
+    /// A laser at the origin facing +x, 361 beams over 180°, in the room
+    /// x ≤ 2, y ≤ 2: the distance along each bearing, from the geometry.
+    fn room() -> Surfaces {
+        let ranges = (0..361)
+            .map(|i| {
+                let b = (-90.0 + 0.5 * f64::from(i)).to_radians();
+                let (c, s) = (b.cos(), b.sin());
+                let tx = if c > 1e-9 { 2.0 / c } else { f64::INFINITY };
+                let ty = if s > 1e-9 { 2.0 / s } else { f64::INFINITY };
+                let t = tx.min(ty);
+                (if t < 10.0 { t } else { f64::INFINITY }) as f32
+            })
+            .collect();
+        let scan = Scan {
+            time_s: 0.0,
+            robot: [0.0, 0.0, 0.0],
+            laser: [0.0, 0.0, 0.0],
+            odometry: None,
+            angle_min: -std::f64::consts::FRAC_PI_2,
+            angle_step: 0.5f64.to_radians(),
+            ranges,
+            line: 0,
+        };
+        Surfaces::of_scan(&scan, 0.0, 1, &|_| true)
+    }
+
+    /// The range each of 20 pings of a transducer at `o` facing `deg` reads, mm.
+    fn pings(s: &[Surfaces], o: P, deg: f64) -> Vec<(Option<u32>, f64)> {
+        let plan = FiringPlan::new(1, None).unwrap();
+        let beam = Beam::new(20.0, 50.0).with_specular_width(2.8);
+        let ears = Ears { surfaces: s, beam: &beam, plan: &plan, seed: 7 };
+        (0..20)
+            .map(|k| {
+                let p = ears.ping(k, 0.0, o, deg.to_radians());
+                (p.echo_us.map(|u| plan.range_mm(u)), p.covered)
+            })
+            .collect()
+    }
+
+    #[test]
+    fn a_wall_is_heard_at_its_perpendicular_range_and_a_corner_at_its_own() {
+        let s = [room()];
+        // Facing the wall x = 2: 2 m, to a few centimetres (the envelope's rise, noise).
+        for (r, covered) in pings(&s, (0.0, 0.0), 0.0) {
+            assert_eq!(covered, 1.0);
+            let r = r.expect("the wall ahead echoes");
+            // Range noise: 5 mm + 0.5 % (σ 15 mm at 2 m); an echo is timed late by its rise.
+            assert!((1950..2080).contains(&r), "{r}");
+        }
+        // Facing the inside corner (2, 2): 2.83 m, a retro-reflection; the
+        // walls' perpendicular feet are 45° off the axis, beyond the fan.
+        let heard: Vec<u32> = pings(&s, (0.0, 0.0), 45.0).into_iter().filter_map(|p| p.0).collect();
+        assert!(heard.len() >= 18, "{heard:?}");
+        assert!(heard.iter().all(|&r| (2800..2900).contains(&r)), "{heard:?}");
+    }
+
+    #[test]
+    fn what_the_laser_did_not_see_is_not_covered() {
+        let s = [room()];
+        // Behind the laser: no scan saw that way.
+        assert!(pings(&s, (0.0, 0.0), 180.0).iter().all(|p| p.1 == 0.0 && p.0.is_none()));
+        // Beside it, half the lobe is behind the laser's field.
+        let half = pings(&s, (0.0, 0.0), 90.0)[0].1;
+        assert!(half > 0.3 && half < 0.7, "{half}");
+    }
+}
