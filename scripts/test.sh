@@ -7,7 +7,7 @@ bash scripts/setup.sh
 step() { printf '\n== %s\n' "$*"; }
 
 # Real data the tests read (DESIGN §9): the shared folder beside the repository.
-for f in ../shared/data/maps/depot.yaml ../shared/data/maps/tb3_sandbox.yaml ../shared/data/sonar/scitos-g5-ring24.csv; do
+for f in ../shared/data/maps/depot.yaml ../shared/data/maps/tb3_sandbox.yaml ../shared/data/sonar/scitos-g5-ring24.csv ../shared/data/real/intel-corrected.log.gz; do
   if [ ! -f "$f" ]; then
     echo "missing $f: check out the project's shared/ folder beside this repository (CI has it there)" >&2
     exit 1
@@ -98,6 +98,9 @@ bash scripts/replay-checks.sh
 
 step "big maps (issue #11 item 5): the depot tiled 1x1, 3x2 and 4x4, imported and run from a flash partition"
 bash scripts/big-maps.sh
+
+step "real buildings (issue #35): the ladder script's short case on the Intel lidar run (the whole table: docs/real-buildings.md)"
+bash scripts/real-buildings.sh --short
 
 step "the benchmark's windows on the M4 (issue #13): answers equal the host's, instructions per window"
 bash scripts/bench-m4.sh 300
