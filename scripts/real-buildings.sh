@@ -8,6 +8,9 @@
 #   bash scripts/real-buildings.sh            # both buildings, every table (a few minutes)
 #   bash scripts/real-buildings.sh --short    # CI's short case: 60 scans of the Intel run
 #   WALLS=contour bash scripts/real-buildings.sh   # the maps' outlines round the cells instead
+#   bash scripts/real-buildings.sh --seeds 10 [simulate args]   # the laser rung, seeds 1..10, both
+#                                             # buildings, both firings: a line a run, then a summary
+#                                             # (e.g. --heard-face-deg 15: another conversion's physics)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 data=../shared/data/real
@@ -26,6 +29,28 @@ walls=${WALLS:-lines}
 splits=("intel intel-corrected.log.gz 228: 0:228" "aces aces-corrected.log.gz :300,400: 300:400")
 if [ "${1:-}" = "--short" ]; then
   splits=("intel intel-corrected.log.gz 60: 0:60")
+fi
+
+if [ "${1:-}" = "--seeds" ]; then
+  n=${2:?--seeds N}
+  shift 2
+  for s in "${splits[@]}"; do
+    read -r name file map_pass run_pass <<<"$s"
+    $L map from-scans "$data/$file" --pass "$map_pass" -o "$out/$name.yaml" >/dev/null
+    for fire in along-path at-scans; do
+      for seed in $(seq 1 "$n"); do
+        $L simulate --from-scans "$data/$file" --pass "$run_pass" --map "$out/$name.yaml" --walls "$walls" \
+          --fire "$fire" --seed "$seed" --json "$@" |
+          python3 -c "
+import json, sys
+r = json.load(sys.stdin); e = r['ekf']; l = r['localization']
+print('$name', '$fire', $seed, e['position_rmse_m'], e['heading_rmse_deg'], e['max_position_error_m'], l['off_fraction'],
+      l['off_cycles_known'] if l['off_cycles_known'] is not None else '-', r['verdicts']['confirmed_fraction'])"
+      done
+    done
+  done | tee /dev/stderr | awk '{ k = $1 " " $2; n[k]++; if ($4 <= 0.15 && $5 <= 2.0 && $7 <= 0.01) ok[k]++; s[k] += $4; h[k] += $5; if ($4 > w[k]) w[k] = $4 }
+    END { for (k in n) printf "%s: %d runs, %d within 15 cm, 2 deg and 1 %% off; mean RMSE %.3f m, %.2f deg; worst %.3f m\n", k, n[k], ok[k], s[k] / n[k], h[k] / n[k], w[k] }' | sort
+  exit 0
 fi
 
 for s in "${splits[@]}"; do

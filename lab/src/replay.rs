@@ -46,6 +46,10 @@ pub struct ReplayArgs {
     /// the reference where the log has one (docs/localization.md).
     #[arg(long)]
     pub trace: Option<PathBuf>,
+    /// Writes one CSV row per reading: the reading, the prediction at the
+    /// estimate, the verdict, what the EKF did, the estimate and the reference.
+    #[arg(long = "readings-csv")]
+    pub readings_csv: Option<PathBuf>,
     /// Seed of the particles' draws.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
@@ -144,7 +148,7 @@ pub fn replay_cmd(a: &ReplayArgs) -> Result<String, LabError> {
         check_writable(p)?;
         check_writable(&error_plot_path(p))?;
     }
-    for p in a.mcap.iter().chain(a.trace.iter()) {
+    for p in a.mcap.iter().chain(a.trace.iter()).chain(a.readings_csv.iter()) {
         check_writable(p)?;
     }
     let arg = a
@@ -200,6 +204,9 @@ pub fn replay_cmd(a: &ReplayArgs) -> Result<String, LabError> {
     }
     if let Some(p) = &a.trace {
         outputs.push((p.clone(), crate::simulate::localization::trace_csv(&trace).into_bytes()));
+    }
+    if let Some(p) = &a.readings_csv {
+        outputs.push((p.clone(), trace.readings_csv(&steps).into_bytes()));
     }
     if let Some(p) = &a.mcap {
         let rec = crate::foxglove::record(&map, &mounts, &steps, &trace, &[])

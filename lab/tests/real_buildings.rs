@@ -26,9 +26,22 @@ fn a_lidar_run_becomes_a_map_and_a_sonar_run_echoloc_holds_on() {
 
     // The laser rung: every return of the run's own scans, clutter and all.
     let log = tmp("real", "intel-laser.csv");
+    let per_reading = tmp("real", "intel-readings.csv");
     let intel = intel();
     let run = ["--from-scans", s(&intel), "--pass", "0:60", "--map", s(&yaml), "--walls", "lines"];
-    let v = simulate(&[&run[..], &["--readings", "laser", "--log", s(&log)]].concat());
+    let v =
+        simulate(&[&run[..], &["--readings", "laser", "--log", s(&log), "--readings-csv", s(&per_reading)]].concat());
+    // One row a reading; every reading the EKF took had a prediction, and a confirmed one is within 10 cm of it.
+    let csv = std::fs::read_to_string(&per_reading).unwrap();
+    let rows: Vec<Vec<&str>> = csv.lines().skip(1).map(|l| l.split(',').collect()).collect();
+    assert_eq!(rows.len() as f64, num(&v, "readings"));
+    let accepted: Vec<&Vec<&str>> = rows.iter().filter(|r| r[10] == "accepted").collect();
+    assert_eq!(accepted.len() as f64, num(&v, "ekf.accepted"));
+    assert!(accepted.iter().all(|r| !r[4].is_empty()), "an update without a prediction");
+    for r in rows.iter().filter(|r| r[9] == "Confirmed") {
+        let (z, h): (f64, f64) = (r[3].parse().unwrap(), r[4].parse().unwrap());
+        assert!((z - h).abs() <= 100.0, "{r:?}");
+    }
     let f = &v["from_scans"];
     // The front half of the ring is seen by the laser, the rear half mostly not.
     assert!((0.4..0.95).contains(&num(f, "covered_fraction")), "{f}");

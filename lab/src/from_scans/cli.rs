@@ -57,9 +57,22 @@ pub struct ScansArgs {
     /// The firing: T_s:TRANSDUCER, the transducer's first reading from T_s on.
     #[arg(long = "cone-at", requires = "cone_plot")]
     pub cone_at: Option<String>,
+    /// The wheel odometry's errors: calibrated (UMBmark's correction: a
+    /// tenth of the systematic errors) or uncalibrated (the simulator's).
+    #[arg(long, value_enum, default_value = "calibrated", requires = "from_scans")]
+    pub odometry: OdometryKind,
     /// A ROS 2 bag's topics and frames (a CARMEN log has none).
     #[command(flatten, next_help_heading = "A lidar bag (--from-scans)")]
     pub bag: crate::lidar::bag::LaserBagArgs,
+}
+
+/// Which wheel odometry the derived run has.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum OdometryKind {
+    /// After UMBmark's calibration.
+    Calibrated,
+    /// The simulator's default: systematic errors as Borenstein and Feng found before calibration.
+    Uncalibrated,
 }
 
 /// What `simulate` passes on.
@@ -76,12 +89,14 @@ pub struct Common<'a> {
     pub mcap: Option<PathBuf>,
     /// A ROS 2 bag directory to write the run to.
     pub bag: Option<PathBuf>,
+    /// One CSV row per reading (the filters' view).
+    pub readings_csv: Option<PathBuf>,
 }
 
 /// Runs one rung, or the ladder.
 pub fn run(c: &Common<'_>, a: &ScansArgs) -> Result<String, LabError> {
     let Some(path) = &a.from_scans else { return Err(LabError("--from-scans: give a run".into())) };
-    let files = [&c.log, &c.plot, &c.trace, &c.mcap, &c.bag, &a.at_truth_csv, &a.cone_plot];
+    let files = [&c.log, &c.plot, &c.trace, &c.mcap, &c.bag, &c.readings_csv, &a.at_truth_csv, &a.cone_plot];
     if a.ladder && files.iter().any(|f| f.is_some()) {
         return Err(LabError("--ladder writes no files: give one rung (--readings) to write a run's files".into()));
     }
@@ -103,6 +118,10 @@ pub fn run(c: &Common<'_>, a: &ScansArgs) -> Result<String, LabError> {
             fire: a.fire,
             face_heard_at_1m_deg: a.heard_face_deg,
             uncovered: a.uncovered,
+            odometry: match a.odometry {
+                OdometryKind::Calibrated => crate::simulate::world::OdometryModel::calibrated(),
+                OdometryKind::Uncalibrated => crate::simulate::world::OdometryModel::default(),
+            },
         };
         let d =
             derive(&scans, rung, &inputs, &c.mounts, &opt).map_err(|e| LabError(format!("{}: {e}", path.display())))?;
@@ -143,6 +162,9 @@ pub fn run(c: &Common<'_>, a: &ScansArgs) -> Result<String, LabError> {
             }
             if c.bag.is_some() {
                 bag_rows = Some(crate::simulate::rows_of(&kept, &steps));
+            }
+            if let Some(p) = &c.readings_csv {
+                outputs.push((p.clone(), trace.readings_csv(&steps).into_bytes()));
             }
             if let Some(p) = &c.trace {
                 outputs.push((p.clone(), crate::simulate::localization::trace_csv(&trace).into_bytes()));

@@ -158,7 +158,13 @@ pub fn draw(
             }
             v
         })
-        .filter(|v| v.iter().any(|p| (p.0 - apex.0).abs() <= HALF_M && (p.1 - apex.1).abs() <= HALF_M))
+        // Pieces whose box meets the drawn square (a long wall's ends may both lie outside it).
+        .filter(|v| {
+            let (lo, hi) = v.iter().fold(((f64::MAX, f64::MAX), (f64::MIN, f64::MIN)), |(lo, hi), p| {
+                ((lo.0.min(p.0), lo.1.min(p.1)), (hi.0.max(p.0), hi.1.max(p.1)))
+            });
+            lo.0 <= apex.0 + HALF_M && hi.0 >= apex.0 - HALF_M && lo.1 <= apex.1 + HALF_M && hi.1 >= apex.1 - HALF_M
+        })
         .collect();
     let params = predict_params(map.buffer_mm(), map.field());
     let pose = Pose { x_mm: (x * 1000.0) as f32, y_mm: (y * 1000.0) as f32, heading_rad: h as f32 };

@@ -37,7 +37,7 @@ use crate::lidar::{LidarRun, Scan};
 use crate::map::ros::{Cell, Grid};
 use crate::simulate::filters::{self, predict_params, Start, Trace};
 use crate::simulate::world::{
-    wrap, Beam, EchoKind, EchoSource, FiringPlan, Odometry, OdometryErrors, SimReading, WorldConfig,
+    wrap, Beam, EchoKind, EchoSource, FiringPlan, Odometry, OdometryErrors, OdometryModel, SimReading, WorldConfig,
 };
 use path::RunPath;
 use surfaces::Surfaces;
@@ -111,11 +111,19 @@ pub struct DeriveOptions {
     pub face_heard_at_1m_deg: f64,
     /// Transducers the laser did not cover.
     pub uncovered: Uncovered,
+    /// The wheel odometry's errors.
+    pub odometry: OdometryModel,
 }
 
 impl Default for DeriveOptions {
     fn default() -> Self {
-        Self { seed: 1, fire: Fire::AlongPath, face_heard_at_1m_deg: FACE_HEARD_AT_1M_DEG, uncovered: Uncovered::Drop }
+        Self {
+            seed: 1,
+            fire: Fire::AlongPath,
+            face_heard_at_1m_deg: FACE_HEARD_AT_1M_DEG,
+            uncovered: Uncovered::Drop,
+            odometry: OdometryModel::calibrated(),
+        }
     }
 }
 
@@ -195,7 +203,7 @@ pub fn derive(
             rung.name()
         ));
     }
-    let cfg = WorldConfig::new(seed, 1.0, 0.0, mounts.to_vec());
+    let cfg = WorldConfig { odometry: opt.odometry, ..WorldConfig::new(seed, 1.0, 0.0, mounts.to_vec()) };
     let path = path::through(&run.scans);
     let plan = FiringPlan::new(mounts.len(), cfg.binh_after_us).map_err(|e| e.to_string())?;
     let unit = Beam::new(cfg.temperature_c, cfg.humidity_pct);

@@ -43,6 +43,16 @@ pub struct Judged {
     pub verdict: Option<Verdict>,
     /// The predicted range, mm.
     pub predicted_mm: Option<u32>,
+    /// What the EKF did with it.
+    pub update: Option<Update>,
+    /// The prediction's κ.
+    pub kappa: Option<f32>,
+    /// Its echo point's angle off the axis, millidegrees.
+    pub theta_mdeg: Option<i32>,
+    /// Its cone arc deviation, millidegrees.
+    pub delta_mdeg: Option<i32>,
+    /// Which of the paper's cases gave it.
+    pub case: Option<echoloc::predict::Case>,
 }
 
 /// Error figures of one estimate against the truth, over every reading.
@@ -151,6 +161,49 @@ pub struct Cloud {
 }
 
 impl Trace {
+    /// One CSV row per reading (`--readings-csv`): the time, the reading,
+    /// the prediction at the estimate (range, κ, θ, δ, case), the verdict,
+    /// what the EKF did (its innovation and ν²/S), the estimate and the truth.
+    pub fn readings_csv(&self, steps: &[Step]) -> String {
+        let mut out = String::from(
+            "time_s,cycle,transducer,range_mm,predicted_mm,kappa,theta_deg,delta_deg,case,verdict,update,innovation_m,nis,x_m,y_m,theta_rad,ref_x_m,ref_y_m,ref_theta_rad\n",
+        );
+        let opt = |v: Option<String>| v.unwrap_or_default();
+        for ((s, j), (e, t)) in steps.iter().zip(&self.judged).zip(self.ekf.iter().zip(&self.truth)) {
+            let (update, innovation, nis) = match j.update {
+                Some(Update::Accepted { innovation, nis }) => ("accepted", Some(innovation), Some(nis)),
+                Some(Update::Gated { innovation, nis }) => ("gated", Some(innovation), Some(nis)),
+                Some(Update::Unusable) => ("unusable", None, None),
+                None => ("", None, None),
+            };
+            let range = match s.reading {
+                Reading::Echo { range_mm } => range_mm.to_string(),
+                _ => String::new(),
+            };
+            out.push_str(&format!(
+                "{:.6},{},{},{range},{},{},{},{},{},{},{update},{},{},{:.6},{:.6},{:.6},{},{},{}\n",
+                s.time_s,
+                s.cycle,
+                s.transducer,
+                opt(j.predicted_mm.map(|v| v.to_string())),
+                opt(j.kappa.map(|k| format!("{k:.4}"))),
+                opt(j.theta_mdeg.map(|v| format!("{:.3}", f64::from(v) / 1000.0))),
+                opt(j.delta_mdeg.map(|v| format!("{:.3}", f64::from(v) / 1000.0))),
+                opt(j.case.map(|c| format!("{c:?}"))),
+                opt(j.verdict.map(|v| format!("{v:?}"))),
+                opt(innovation.map(|v| format!("{v:.4}"))),
+                opt(nis.map(|v| format!("{v:.3}"))),
+                e[0],
+                e[1],
+                e[2],
+                opt(t.map(|t| format!("{:.6}", t[0]))),
+                opt(t.map(|t| format!("{:.6}", t[1]))),
+                opt(t.map(|t| format!("{:.6}", t[2]))),
+            ));
+        }
+        out
+    }
+
     fn track(&self, m: Methods) -> &[[f64; 3]] {
         match m {
             Methods::DeadReckoning => &self.dead_reckoning,
@@ -467,6 +520,11 @@ fn run_with<M: MapSource, const N: usize>(
             predicted_obstacle: rep.prediction.map(|p| p.obstacle),
             verdict: Some(rep.verdict),
             predicted_mm: rep.prediction.map(|p| p.range_mm),
+            update: rep.update,
+            kappa: rep.prediction.map(|p| p.kappa.to_num::<f32>()),
+            theta_mdeg: rep.prediction.map(|p| p.theta_mdeg),
+            delta_mdeg: rep.prediction.map(|p| p.delta_mdeg),
+            case: rep.prediction.map(|p| p.case),
         });
         let truth = r.truth.map(f64x3);
         if let (Some(p), Some(q)) = (prev_truth, truth) {

@@ -109,6 +109,10 @@ pub struct SimulateArgs {
     /// the true pose (docs/localization.md).
     #[arg(long)]
     trace: Option<PathBuf>,
+    /// Writes one CSV row per reading: the reading, the prediction at the
+    /// estimate, the verdict, what the EKF did, the estimate and the truth.
+    #[arg(long = "readings-csv")]
+    readings_csv: Option<PathBuf>,
     /// A run derived from a lidar run's scans instead (issue #35).
     #[command(flatten)]
     scans: crate::from_scans::cli::ScansArgs,
@@ -135,6 +139,7 @@ pub fn simulate_cmd(a: &SimulateArgs) -> Result<String, LabError> {
         .iter()
         .chain(a.plot.as_deref().map(error_plot_path).iter())
         .chain(a.scenario.iter())
+        .chain(a.readings_csv.iter())
         .chain(a.log.iter())
         .chain(a.trace.iter())
         .chain(a.mcap.iter())
@@ -175,6 +180,7 @@ pub fn simulate_cmd(a: &SimulateArgs) -> Result<String, LabError> {
             trace: a.trace.clone(),
             mcap: a.mcap.clone(),
             bag: a.bag.clone(),
+            readings_csv: a.readings_csv.clone(),
         };
         return crate::from_scans::cli::run(&common, &a.scans);
     }
@@ -229,6 +235,9 @@ pub fn simulate_cmd(a: &SimulateArgs) -> Result<String, LabError> {
     }
     if let Some(p) = &a.trace {
         outputs.push((p.clone(), localization::trace_csv(&trace).into_bytes()));
+    }
+    if let Some(p) = &a.readings_csv {
+        outputs.push((p.clone(), trace.readings_csv(&steps).into_bytes()));
     }
     if let Some(p) = &a.plot {
         let (paths, errors) =
