@@ -8,9 +8,9 @@
 //! |---|---|
 //! | [`map`] | import ROS map_server grids ([`map::ros`]) and GeoJSON ([`map::geojson`]) into convex, buffered polygons; compile the firmware's map blob ([`map::import`], [`map::build_map`]); inspect, export, preview |
 //! | [`ring`] | rings: `pioneer16` or a JSON file of transducer mounts |
-//! | [`lidar`] | a lidar robot's run in (CARMEN logs), and the occupancy grid a SLAM user would make of it |
+//! | [`lidar`] | a lidar robot's run in (CARMEN logs, ROS 2 bags with `LaserScan`), and the occupancy grid a SLAM user would make of it |
 //! | [`from_scans`] | a sonar run on real geometry: the ring's readings derived from a lidar run's scans, the ladder (`simulate --from-scans`) |
-//! | [`bag`] | ROS 2 bags (rosbag2 MCAP) read as a log: ranges, the ring from `/tf_static`, odometry, a reference (`docs/bags.md`) |
+//! | [`bag`] | ROS 2 bags (rosbag2 MCAP) read as a log, and a log written as one (`bag::write`): ranges, the ring from `/tf_static`, odometry, a reference (`docs/bags.md`) |
 //! | [`log`] | the plain CSV log a robot's logger writes (`docs/log.md`): read with line-numbered errors, write |
 //! | [`replay`] | a log through prediction, verdicts, the threshold method and the EKF; `echoloc-lab replay` |
 //! | [`scenario`] | binary scenarios for the boards (`docs/scenario.md`): replay on the host, convert a log |

@@ -16,7 +16,7 @@ use crate::simulate::localization::StartArg;
 #[derive(Args, Clone, Debug)]
 pub struct ScansArgs {
     /// Derive the ring's readings from a lidar run (a CARMEN log, plain or
-    /// gzip) instead of simulating a world: real geometry and clutter
+    /// gzip, or a ROS 2 bag with LaserScan) instead of simulating a world: real geometry and clutter
     /// (docs/real-buildings.md). --distance-m, --inconsistent, --kidnap and
     /// --scenario do not apply.
     #[arg(long = "from-scans", value_name = "RUN")]

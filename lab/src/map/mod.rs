@@ -106,7 +106,7 @@ pub enum MapCmd {
     /// run's scans at their poses, by log-odds ray casting: the map a SLAM
     /// user would make of the pass (docs/real-buildings.md).
     FromScans {
-        /// The lidar run: a CARMEN log (FLASER, ROBOTLASER1), plain or gzip.
+        /// The lidar run: a CARMEN log (FLASER, ROBOTLASER1), plain or gzip, or a ROS 2 bag (LaserScan at a pose: docs/lidar-bags.md).
         run: PathBuf,
         /// Output map_server YAML; the PGM is written beside it.
         #[arg(short = 'o', long = "out")]
