@@ -129,3 +129,38 @@ fn what_cannot_be_derived_is_refused_naming_why() {
     std::fs::write(&bad_line, "FLASER 3 1 x 1 0 0 0 0 0 0 0 h 0\n").unwrap();
     fails(&["map", "from-scans", s(&bad_line), "-o", s(&yaml)], &["bad.log", "line 1", "range 1"]);
 }
+
+#[test]
+fn a_real_building_runs_on_the_board_as_on_the_host() {
+    // The Intel run's short case with every transducer every cycle (the
+    // driver fires them all), its lines map in the board's flash partition.
+    let elf = common::board_binary("replay");
+    let intel = intel();
+    let yaml = tmp("real-board", "intel.yaml");
+    run_json(&["map", "from-scans", s(&intel), "--pass", "60:", "-o", s(&yaml)]);
+    let blob = tmp("real-board", "intel.map");
+    // Coarser field nodes: the map fits the board's 1 MiB partition.
+    run_json(&["map", "import", s(&yaml), "--walls", "lines", "--field-node-mm", "350", "-o", s(&blob)]);
+    let log = tmp("real-board", "keep.csv");
+    simulate(&[
+        "--from-scans",
+        s(&intel),
+        "--pass",
+        "0:60",
+        "--map",
+        s(&blob),
+        "--uncovered",
+        "keep",
+        "--log",
+        s(&log),
+    ]);
+    let v = run_json(&["board", "--json", "--map", s(&blob), "--log", s(&log), "--firmware", s(&elf)]);
+    assert!(v["board"]["map"].as_str().unwrap().contains("from the partition at 0x00200000"), "{v}");
+    assert_eq!(v["board"]["readings"], v["host"]["readings"]);
+    let (b, h) = (&v["board"]["final_pose"], &v["host"]["final_pose"]);
+    let f = |x: &serde_json::Value, i: usize| x[i].as_f64().unwrap();
+    let d_mm = (f(b, 0) - f(h, 0)).hypot(f(b, 1) - f(h, 1)) * 1000.0;
+    let d_mrad = (f(b, 2) - f(h, 2)).abs() * 1000.0;
+    assert!(d_mm <= 1.0 && d_mrad <= 1.0, "board {b} against host {h}: {d_mm} mm, {d_mrad} mrad");
+    assert!(num(&v, "board.position_rmse_m") <= 0.15, "{v}");
+}
