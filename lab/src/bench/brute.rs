@@ -19,7 +19,7 @@ fn inside_cone(o: P, axis: P, cos_h: f64, p: P) -> bool {
 }
 
 /// Where the ray `o + t·u` (t ≥ 0) crosses segment `a b`, if it does.
-fn ray_cross(o: P, u: P, a: P, b: P) -> Option<P> {
+pub(crate) fn ray_cross(o: P, u: P, a: P, b: P) -> Option<P> {
     let e = (b.0 - a.0, b.1 - a.1);
     let den = u.0 * e.1 - u.1 * e.0;
     if den.abs() < 1e-15 {

@@ -481,11 +481,7 @@ pub fn at_truth(map: &MapView<'_>, mounts: &[Mount], kept: &[SimReading], mut cs
     }
     for r in kept {
         let Some(m) = mounts.get(usize::from(r.transducer)) else { continue };
-        let pose = Pose {
-            x_mm: (r.truth.0 * 1000.0) as f32,
-            y_mm: (r.truth.1 * 1000.0) as f32,
-            heading_rad: r.truth.2 as f32,
-        };
+        let pose = echoloc::referencing::pose_mm([r.truth.0 as f32, r.truth.1 as f32, r.truth.2 as f32]);
         let Ok((p, _)) = predict_mount(map, &pose, m, &params, &net) else { continue };
         let reading = r.range_mm.map_or(Reading::NoEcho, |range_mm| Reading::Echo { range_mm });
         n += 1;

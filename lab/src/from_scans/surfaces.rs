@@ -372,19 +372,12 @@ mod tests {
             .map(|i| {
                 let b = (-90.0 + f64::from(i)).to_radians();
                 let d = (b.cos(), b.sin());
+                // The bench's brute-force ray crossing (`bench::brute`), not this module's.
                 walls
                     .iter()
-                    .filter_map(|&(a, c)| {
-                        let e = (c.0 - a.0, c.1 - a.1);
-                        let den = d.0 * e.1 - d.1 * e.0;
-                        if den.abs() < 1e-12 {
-                            return None;
-                        }
-                        let w = (a.0 - o.0, a.1 - o.1);
-                        let t = (w.0 * e.1 - w.1 * e.0) / den;
-                        let u = (w.0 * d.1 - w.1 * d.0) / den;
-                        (t > 0.0 && (0.0..=1.0).contains(&u)).then_some(t)
-                    })
+                    .filter_map(|&(a, c)| crate::bench::brute::ray_cross(o, d, a, c))
+                    .map(|p| (p.0 - o.0).hypot(p.1 - o.1))
+                    .filter(|&t| t > 0.0)
                     .fold(f64::INFINITY, f64::min) as f32
             })
             .collect();
