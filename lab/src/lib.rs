@@ -55,7 +55,9 @@ pub mod bag;
 pub mod bench;
 pub mod board;
 pub mod credence;
+pub mod error;
 pub mod figure;
+pub mod files;
 pub mod foxglove;
 pub mod from_scans;
 pub mod lidar;
@@ -68,4 +70,4 @@ pub mod ring;
 pub mod scenario;
 pub mod simulate;
 
-pub use map::LabError;
+pub use error::LabError;

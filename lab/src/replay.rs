@@ -10,7 +10,8 @@ use clap::Args;
 use echoloc::referencing::Reading;
 use serde_json::json;
 
-use crate::log::{Log, Row};
+pub use crate::log::cycles;
+use crate::log::Log;
 use crate::map::LabError;
 use crate::predict::ring_mounts;
 use crate::simulate::filters::{self, Start, Step};
@@ -69,26 +70,6 @@ pub struct ReplayArgs {
     /// OUT-error.png (SVG for OUT.svg).
     #[arg(long)]
     pub plot: Option<PathBuf>,
-}
-
-/// The log's rows split into ring cycles: a cycle ends before a transducer
-/// fires a second time. A ring that fires one transducer at a time and
-/// whole-ring rows sharing one time both give one cycle per round.
-pub fn cycles(rows: &[Row]) -> Vec<&[Row]> {
-    let mut out = Vec::new();
-    let (mut start, mut seen) = (0, [false; 256]);
-    for (i, r) in rows.iter().enumerate() {
-        if seen[usize::from(r.transducer)] {
-            out.push(&rows[start..i]);
-            start = i;
-            seen = [false; 256];
-        }
-        seen[usize::from(r.transducer)] = true;
-    }
-    if start < rows.len() {
-        out.push(&rows[start..]);
-    }
-    out
 }
 
 /// The log as the filters' steps: odometry increments from the cumulative

@@ -162,7 +162,7 @@ pub fn log_cmd(a: &LogArgs) -> Result<String, LabError> {
     }
     write_all(&outputs)?;
     let log = crate::log::Log { rows: bag.rows.clone() };
-    let cycles = crate::replay::cycles(&log.rows).len();
+    let cycles = crate::log::cycles(&log.rows).len();
     let mut v = summary(&bag);
     if let Some(o) = v.as_object_mut() {
         o.insert(

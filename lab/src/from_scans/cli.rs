@@ -8,9 +8,12 @@ use clap::Args;
 use serde_json::{json, Value};
 
 use super::{at_truth, derive, map_covers, run_filters, summary, MapInputs, Readings};
-use crate::map::{LabError, LoadedMap};
+use crate::error::LabError;
+use crate::files::{error_plot_path, write_all};
+use crate::map::load::{LoadedMap, MapKind};
 use crate::simulate::filters::Methods;
 use crate::simulate::localization::StartArg;
+use crate::simulate::report::{log_of, report, rows_of};
 
 /// `simulate`'s options for a run derived from a lidar run's scans.
 #[derive(Args, Clone, Debug)]
@@ -104,7 +107,7 @@ pub fn run(c: &Common<'_>, a: &ScansArgs) -> Result<String, LabError> {
     let scans = crate::lidar::read_with(path, &a.bag.options())?.pass(pass)?;
     let view = c.loaded.view()?;
     let grid = match c.loaded.kind() {
-        crate::map::MapKind::RosMapServer => Some(crate::map::ros::load(c.map)?),
+        MapKind::RosMapServer => Some(crate::map::ros::load(c.map)?),
         _ => None,
     };
     let inputs = MapInputs { view: &view, grid: grid.as_ref() };
@@ -127,7 +130,7 @@ pub fn run(c: &Common<'_>, a: &ScansArgs) -> Result<String, LabError> {
             derive(&scans, rung, &inputs, &c.mounts, &opt).map_err(|e| LabError(format!("{}: {e}", path.display())))?;
         let (trace, steps, kept) = run_filters(&d, &view, view.field(), &c.mounts, c.loaded.crc(), c.seed, c.start)
             .map_err(|e| LabError(format!("{}: {e}", path.display())))?;
-        let mut r = crate::simulate::report(&trace, None);
+        let mut r = report(&trace, None);
         if let Some(o) = r.as_object_mut() {
             o.insert("localization".into(), crate::simulate::localization::report(&trace, &[]));
             let mut s = summary(&d, &scans, rung);
@@ -158,10 +161,10 @@ pub fn run(c: &Common<'_>, a: &ScansArgs) -> Result<String, LabError> {
         // Files are written for one rung only (the last with --ladder would overwrite the others).
         if !a.ladder {
             if let Some(p) = &c.log {
-                outputs.push((p.clone(), crate::simulate::log_of(&kept, &steps).into_bytes()));
+                outputs.push((p.clone(), log_of(&kept, &steps).into_bytes()));
             }
             if c.bag.is_some() {
-                bag_rows = Some(crate::simulate::rows_of(&kept, &steps));
+                bag_rows = Some(rows_of(&kept, &steps));
             }
             if let Some(p) = &c.readings_csv {
                 outputs.push((p.clone(), trace.readings_csv(&steps).into_bytes()));
@@ -174,7 +177,7 @@ pub fn run(c: &Common<'_>, a: &ScansArgs) -> Result<String, LabError> {
                     crate::simulate::figures::draw_as(&view, &[], &trace, crate::figure::Format::of(p))
                         .map_err(LabError)?;
                 outputs.push((p.clone(), paths));
-                outputs.push((crate::simulate::error_plot_path(p), errors));
+                outputs.push((error_plot_path(p), errors));
             }
             if let Some(p) = &c.mcap {
                 let rec = crate::foxglove::record(&view, &c.mounts, &steps, &trace, &[])
@@ -190,7 +193,7 @@ pub fn run(c: &Common<'_>, a: &ScansArgs) -> Result<String, LabError> {
         crate::bag::write::write_bag(b, rows, &c.mounts, &Default::default())
             .map_err(|e| LabError(format!("--bag {e}")))?;
     }
-    if let Err(e) = crate::simulate::write_all(&outputs) {
+    if let Err(e) = write_all(&outputs) {
         if let Some(b) = &c.bag {
             let _ = std::fs::remove_dir_all(b);
         }

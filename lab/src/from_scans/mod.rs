@@ -448,7 +448,7 @@ pub fn run_filters<M: MapSource>(
     start: Option<crate::simulate::localization::StartArg>,
 ) -> Result<(Trace, Vec<filters::Step>, Vec<SimReading>), String> {
     let kept = d.kept();
-    let records = crate::simulate::to_records(&kept).map_err(|e| e.0)?;
+    let records = crate::simulate::report::to_records(&kept).map_err(|e| e.0)?;
     let first = records.first().map_or([0.0; 3], |r| r.truth);
     let header = Header {
         map_crc,
@@ -456,13 +456,13 @@ pub fn run_filters<M: MapSource>(
         period_us: d.plan.period_us,
         slot_us: d.plan.slot_us,
         start: first,
-        start_sigma: crate::simulate::START_SIGMA,
+        start_sigma: crate::simulate::report::START_SIGMA,
         bound_position_m: 0.15,
         bound_heading_deg: 2.0,
     };
     let steps = filters::steps_of_records(&header, &records)?;
-    let mut how = Start { seed, ..crate::simulate::start_of(&header) };
-    crate::simulate::apply_start(&mut how, start);
+    let mut how = Start { seed, ..crate::simulate::report::start_of(&header) };
+    crate::simulate::report::apply_start(&mut how, start);
     let trace = filters::run(map, field, mounts, &how, &steps, &mut |_| {})?;
     Ok((trace, steps, kept))
 }

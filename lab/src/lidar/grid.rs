@@ -240,12 +240,12 @@ fn beam_end(s: &super::Scan, i: usize, max_range: f64) -> Option<((f64, f64), bo
 
 /// Writes `g` as `yaml` and the PGM beside it (same stem), each whole or
 /// not at all; returns the image's path.
-pub fn write(g: &OccupancyGrid, yaml: &Path) -> Result<std::path::PathBuf, crate::LabError> {
+pub fn write(g: &OccupancyGrid, yaml: &Path) -> Result<std::path::PathBuf, crate::error::LabError> {
     let stem = yaml.file_stem().and_then(|s| s.to_str()).filter(|s| !s.is_empty()).ok_or_else(|| {
-        crate::LabError(format!("{}: give a file name for the map's YAML (MAP.yaml)", yaml.display()))
+        crate::error::LabError(format!("{}: give a file name for the map's YAML (MAP.yaml)", yaml.display()))
     })?;
     let image = yaml.with_file_name(format!("{stem}.pgm"));
-    crate::simulate::write_all(&[
+    crate::files::write_all(&[
         (image.clone(), g.pgm()),
         (yaml.to_path_buf(), g.yaml(&format!("{stem}.pgm")).into_bytes()),
     ])?;
@@ -301,23 +301,24 @@ mod tests {
             assert!(a == Occ::Occupied || b == Occ::Occupied, "{p:?}: {a:?} {b:?}");
         }
         assert_eq!(g.occ_at((2.6, 0.0)), Occ::Unknown);
-        // The PGM map_saver would write: the lab's own map_server reader takes it.
+        // The files map_saver would write, read back by hand: the YAML names
+        // the PGM; the PGM is P5, 255, row 0 at the top; occupied 0, free 254.
         let dir = std::env::temp_dir().join(format!("echoloc-grid-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
         let yaml = dir.join("room.yaml");
-        write(&g, &yaml).unwrap();
-        let read = crate::map::ros::load(&yaml).unwrap();
-        assert_eq!((read.width, read.height), (g.width, g.height));
+        let image = write(&g, &yaml).unwrap();
+        let text = std::fs::read_to_string(&yaml).unwrap();
+        assert!(text.contains("image: room.pgm") && text.contains("resolution: 0.05"), "{text}");
+        let pgm = std::fs::read(&image).unwrap();
+        let header = format!("P5\n# echoloc-lab map from-scans\n{} {}\n255\n", g.width, g.height);
+        assert!(pgm.starts_with(header.as_bytes()));
+        let px = &pgm[header.len()..];
+        assert_eq!(px.len(), g.width * g.height);
         let (free, occ, _) = g.counts();
-        assert_eq!(read.cells.iter().filter(|&&c| c == crate::map::ros::Cell::Free).count(), free);
-        assert_eq!(read.cells.iter().filter(|&&c| c == crate::map::ros::Cell::Occupied).count(), occ);
-        // Image row 0 is the top: the map point near the top wall is occupied there.
-        let top = [1.99, 2.01].map(|y| g.cell_of((0.0, y)).unwrap());
-        assert!(top.iter().any(|&(c, r)| g.occ(c, r) == Occ::Occupied));
-        for (c, r) in top.into_iter().filter(|&(c, r)| g.occ(c, r) == Occ::Occupied) {
-            assert_eq!(read.at(c, g.height - 1 - r), crate::map::ros::Cell::Occupied);
-        }
+        assert_eq!(px.iter().filter(|&&v| v == 254).count(), free);
+        assert_eq!(px.iter().filter(|&&v| v == 0).count(), occ);
+        // Image row 0 is the top: the cell at the map's (0, 1) m is free there.
         let (c, r) = g.cell_of((0.0, 1.0)).unwrap();
-        assert_eq!(read.at(c, g.height - 1 - r), crate::map::ros::Cell::Free);
+        assert_eq!(px[(g.height - 1 - r) * g.width + c], 254);
     }
 }

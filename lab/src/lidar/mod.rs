@@ -208,9 +208,9 @@ impl std::error::Error for LidarError {
     }
 }
 
-impl From<LidarError> for crate::LabError {
+impl From<LidarError> for crate::error::LabError {
     fn from(e: LidarError) -> Self {
-        crate::LabError(e.to_string())
+        crate::error::LabError(e.to_string())
     }
 }
 

@@ -388,6 +388,26 @@ pub fn turn_too_fast(turn: f64, dt_s: f64) -> bool {
     turn.abs() > MAX_TURN_RATE_RAD_S * dt_s.max(TURN_RATE_MIN_DT_S)
 }
 
+/// The log's rows split into ring cycles: a cycle ends before a transducer
+/// fires a second time. A ring that fires one transducer at a time and
+/// whole-ring rows sharing one time both give one cycle per round.
+pub fn cycles(rows: &[Row]) -> Vec<&[Row]> {
+    let mut out = Vec::new();
+    let (mut start, mut seen) = (0, [false; 256]);
+    for (i, r) in rows.iter().enumerate() {
+        if seen[usize::from(r.transducer)] {
+            out.push(&rows[start..i]);
+            start = i;
+            seen = [false; 256];
+        }
+        seen[usize::from(r.transducer)] = true;
+    }
+    if start < rows.len() {
+        out.push(&rows[start..]);
+    }
+    out
+}
+
 /// Reads a log file for a ring of `ring` transducers; errors name the file and the line.
 pub fn read_file(path: &std::path::Path, ring: usize) -> Result<Log, crate::LabError> {
     let text = std::fs::read_to_string(path).map_err(|e| crate::LabError(format!("{}: {e}", path.display())))?;

@@ -31,6 +31,9 @@ use echoloc::map::{MapSource, MapView, StandardMap};
 pub use build::{build_map, build_map_with, MapSummary, Shape};
 pub use field::FieldOptions;
 pub use load::{LoadOptions, LoadedMap, MapKind};
+// Where they lived before the lab had a room for each.
+pub use crate::error::LabError;
+pub use crate::files::write_atomically;
 
 /// Import defaults, shared by `map import` and the other commands that read
 /// a map source.
@@ -169,18 +172,6 @@ impl Unknown {
         }
     }
 }
-
-/// An error that names the file (and, where known, the place in it).
-#[derive(Debug)]
-pub struct LabError(pub String);
-
-impl fmt::Display for LabError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(&self.0)
-    }
-}
-
-impl std::error::Error for LabError {}
 
 /// Why a map could not be read, built or written. Each names the file and,
 /// where there is one, the field.
@@ -630,18 +621,4 @@ pub fn grid_shapes(
     extra.insert("holes".into(), holes_out.into());
     extra.insert("holes_dropped".into(), (holes_in - holes_out).into());
     Ok((shapes, extra))
-}
-
-/// Writes `bytes` to `path` through a temporary file and a rename, so that a
-/// failure never leaves a partial file behind.
-pub fn write_atomically(path: &Path, bytes: &[u8]) -> Result<(), LabError> {
-    let tmp = path.with_extension("partial");
-    std::fs::write(&tmp, bytes).map_err(|e| {
-        let _ = std::fs::remove_file(&tmp);
-        ImportError::Io { path: tmp.clone(), source: e }
-    })?;
-    std::fs::rename(&tmp, path).map_err(|e| {
-        let _ = std::fs::remove_file(&tmp);
-        LabError(format!("{}: {e}", path.display()))
-    })
 }
