@@ -8,6 +8,7 @@
 #   bash scripts/real-buildings.sh            # both buildings, every table (a few minutes)
 #   bash scripts/real-buildings.sh --short    # CI's short case: 60 scans of the Intel run
 #   WALLS=contour bash scripts/real-buildings.sh   # the maps' outlines round the cells instead
+#   OUT=dir bash scripts/real-buildings.sh  # the maps elsewhere (two runs side by side)
 #   bash scripts/real-buildings.sh --seeds 10 [simulate args]   # the laser rung, seeds 1..10, both
 #                                             # buildings, both firings: a line a run, then a summary
 #                                             # (e.g. --heard-face-deg 15: another conversion's physics)
@@ -20,7 +21,7 @@ if [ ! -f "$data/intel-corrected.log.gz" ]; then
 fi
 cargo build -q --release -p echoloc-lab
 L=./target/release/echoloc-lab
-out=target/real-buildings
+out=${OUT:-target/real-buildings}
 mkdir -p "$out"
 walls=${WALLS:-lines}
 

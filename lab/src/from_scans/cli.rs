@@ -60,6 +60,10 @@ pub struct ScansArgs {
     /// The firing: T_s:TRANSDUCER, the transducer's first reading from T_s on.
     #[arg(long = "cone-at", requires = "cone_plot")]
     pub cone_at: Option<String>,
+    /// Two-bounce echoes: a face mirrors the ping onto another face, which
+    /// sends it back the same way (off: first bounces only).
+    #[arg(long, value_enum, default_value = "on", requires = "from_scans")]
+    pub multipath: OnOff,
     /// The wheel odometry's errors: calibrated (UMBmark's correction: a
     /// tenth of the systematic errors) or uncalibrated (the simulator's).
     #[arg(long, value_enum, default_value = "calibrated", requires = "from_scans")]
@@ -67,6 +71,13 @@ pub struct ScansArgs {
     /// A ROS 2 bag's topics and frames (a CARMEN log has none).
     #[command(flatten, next_help_heading = "A lidar bag (--from-scans)")]
     pub bag: crate::lidar::bag::LaserBagArgs,
+}
+
+/// A switch.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum OnOff {
+    On,
+    Off,
 }
 
 /// Which wheel odometry the derived run has.
@@ -121,6 +132,7 @@ pub fn run(c: &Common<'_>, a: &ScansArgs) -> Result<String, LabError> {
             fire: a.fire,
             face_heard_at_1m_deg: a.heard_face_deg,
             uncovered: a.uncovered,
+            multipath: a.multipath == OnOff::On,
             odometry: match a.odometry {
                 OdometryKind::Calibrated => crate::simulate::world::OdometryModel::calibrated(),
                 OdometryKind::Uncalibrated => crate::simulate::world::OdometryModel::default(),

@@ -113,6 +113,8 @@ pub struct DeriveOptions {
     pub uncovered: Uncovered,
     /// The wheel odometry's errors.
     pub odometry: OdometryModel,
+    /// Two-bounce echoes (a face mirrors the ping onto another).
+    pub multipath: bool,
 }
 
 impl Default for DeriveOptions {
@@ -123,6 +125,7 @@ impl Default for DeriveOptions {
             face_heard_at_1m_deg: FACE_HEARD_AT_1M_DEG,
             uncovered: Uncovered::Drop,
             odometry: OdometryModel::calibrated(),
+            multipath: true,
         }
     }
 }
@@ -243,7 +246,7 @@ pub fn derive(
             .flat_map(|(c, &t)| (0..plan.order.len()).map(move |s| (c as u32, s, t)))
             .collect(),
     };
-    let ears = sonar::Ears { surfaces: &surfaces, beam: &beam, plan: &plan, seed };
+    let ears = sonar::Ears { surfaces: &surfaces, beam: &beam, plan: &plan, seed, multipath: opt.multipath };
     let net = CredenceNet::shipped();
     let params = predict_params(map.view.buffer_mm(), map.view.field());
     let sound = plan.module.sound();

@@ -29,6 +29,9 @@ const MAX_AGE_S: f64 = 120.0;
 const SEEN_STEP_M: f64 = 0.1;
 /// The part of a ray before its hit that need not be seen, m (the hit's own neighbourhood).
 const HIT_SLACK_M: f64 = 0.05;
+/// Loss of a mirror bounce on the way of a two-bounce echo, dB. *Model
+/// assumption*: a painted wall reflects nearly all of a 49 kHz ping.
+pub const BOUNCE_LOSS_DB: f64 = 1.0;
 
 /// Scans sorted by time, and the sonar to hear them with.
 pub struct Ears<'a> {
@@ -36,6 +39,9 @@ pub struct Ears<'a> {
     pub beam: &'a Beam,
     pub plan: &'a FiringPlan,
     pub seed: u64,
+    /// Whether a ray mirrored by a face may come back off a second one
+    /// (multipath: the long readings a sonar gives along a wall).
+    pub multipath: bool,
 }
 
 /// One ping's outcome.
@@ -120,6 +126,25 @@ impl Ears<'_> {
                     0.0,
                     EchoSource::World { kind: EchoKind::Face },
                 );
+                // Multipath: the ray mirrored by this face, heard back off a
+                // second face it meets square enough, along the same way
+                // back (a two-bounce echo, as long as both legs together).
+                if self.multipath {
+                    let dn = d.0 * h.normal.0 + d.1 * h.normal.1;
+                    let m = (d.0 - 2.0 * dn * h.normal.0, d.1 - 2.0 * dn * h.normal.1);
+                    let at = (o.0 + d.0 * h.r + m.0 * 0.01, o.1 + d.1 * h.r + m.1 * 0.01);
+                    if let Some(h2) = s.cast(at, m, rmax - h.r) {
+                        ear.hear_face(
+                            i,
+                            m,
+                            h.r + 0.01 + h2.r,
+                            h2.normal,
+                            s.key ^ (u64::from(h2.surface) << 20) ^ 0xB0,
+                            BOUNCE_LOSS_DB,
+                            EchoSource::World { kind: EchoKind::Face },
+                        );
+                    }
+                }
             }
         }
         // Corners and edges of the scans heard, where the ray at their
@@ -198,7 +223,7 @@ mod tests {
     fn pings(s: &[Surfaces], o: P, deg: f64) -> Vec<(Option<u32>, f64)> {
         let plan = FiringPlan::new(1, None).unwrap();
         let beam = Beam::new(20.0, 50.0).with_specular_width(2.8);
-        let ears = Ears { surfaces: s, beam: &beam, plan: &plan, seed: 7 };
+        let ears = Ears { surfaces: s, beam: &beam, plan: &plan, seed: 7, multipath: false };
         (0..20)
             .map(|k| {
                 let p = ears.ping(k, 0.0, o, deg.to_radians());
@@ -222,6 +247,62 @@ mod tests {
         let heard: Vec<u32> = pings(&s, (0.0, 0.0), 45.0).into_iter().filter_map(|p| p.0).collect();
         assert!(heard.len() >= 18, "{heard:?}");
         assert!(heard.iter().all(|&r| (2800..2900).contains(&r)), "{heard:?}");
+    }
+
+    /// A laser at the origin facing +x over 180°, among `walls`.
+    fn scanned(walls: &[(P, P)]) -> Surfaces {
+        let ranges = (0..361)
+            .map(|i| {
+                let b = (-90.0 + 0.5 * f64::from(i)).to_radians();
+                let d = (b.cos(), b.sin());
+                walls
+                    .iter()
+                    .filter_map(|&(a, c)| crate::bench::brute::ray_cross((0.0, 0.0), d, a, c))
+                    .map(|p| p.0.hypot(p.1))
+                    .filter(|&t| t > 0.0)
+                    .fold(f64::INFINITY, f64::min) as f32
+            })
+            .collect();
+        let scan = Scan {
+            time_s: 0.0,
+            robot: [0.0, 0.0, 0.0],
+            laser: [0.0, 0.0, 0.0],
+            odometry: None,
+            angle_min: -std::f64::consts::FRAC_PI_2,
+            angle_step: 0.5f64.to_radians(),
+            ranges,
+            line: 0,
+        };
+        Surfaces::of_scan(&scan, 0.0, 1, &|_| true)
+    }
+
+    #[test]
+    fn a_face_mirrors_the_ping_onto_another_a_long_reading() {
+        // A wall y = 1 met at 45° (too far off its normal to echo), whose
+        // mirror sends the ping square onto a wall 2 m on: with multipath the
+        // transducer facing 45° reads both legs, √2 + 2 m; without, nothing
+        // of either wall comes back.
+        let m = (std::f64::consts::FRAC_1_SQRT_2, -std::f64::consts::FRAC_1_SQRT_2);
+        let at = (1.0 + 2.0 * m.0, 1.0 + 2.0 * m.1);
+        let along = (-m.1, m.0);
+        let b = ((at.0 - 0.5 * along.0, at.1 - 0.5 * along.1), (at.0 + 0.5 * along.0, at.1 + 0.5 * along.1));
+        let s = [scanned(&[((-1.0, 1.0), (10.0, 1.0)), b])];
+        let plan = FiringPlan::new(1, None).unwrap();
+        let beam = Beam::new(20.0, 50.0).with_specular_width(2.8);
+        let read = |multipath: bool| -> Vec<Option<u32>> {
+            let ears = Ears { surfaces: &s, beam: &beam, plan: &plan, seed: 3, multipath };
+            (0..20)
+                .map(|k| ears.ping(k, 0.0, (0.0, 0.0), 45f64.to_radians()).echo_us.map(|u| plan.range_mm(u)))
+                .collect()
+        };
+        let want = 2f64.sqrt() + 2.0;
+        let with: Vec<u32> = read(true).into_iter().flatten().collect();
+        assert!(with.len() >= 18, "{with:?}");
+        assert!(with.iter().all(|&r| (f64::from(r) / 1000.0 - want).abs() < 0.08), "{with:?} against {want}");
+        // Without: only the odd false echo or crosstalk, never at that range.
+        assert!(
+            read(false).into_iter().flatten().filter(|&r| (f64::from(r) / 1000.0 - want).abs() < 0.08).count() <= 1
+        );
     }
 
     #[test]
