@@ -196,27 +196,7 @@ mod tests {
     /// A laser at the origin facing +x, 361 beams over 180°, in the room
     /// x ≤ 2, y ≤ 2: the distance along each bearing, from the geometry.
     fn room() -> Surfaces {
-        let ranges = (0..361)
-            .map(|i| {
-                let b = (-90.0 + 0.5 * f64::from(i)).to_radians();
-                let (c, s) = (b.cos(), b.sin());
-                let tx = if c > 1e-9 { 2.0 / c } else { f64::INFINITY };
-                let ty = if s > 1e-9 { 2.0 / s } else { f64::INFINITY };
-                let t = tx.min(ty);
-                (if t < 10.0 { t } else { f64::INFINITY }) as f32
-            })
-            .collect();
-        let scan = Scan {
-            time_s: 0.0,
-            robot: [0.0, 0.0, 0.0],
-            laser: [0.0, 0.0, 0.0],
-            odometry: None,
-            angle_min: -std::f64::consts::FRAC_PI_2,
-            angle_step: 0.5f64.to_radians(),
-            ranges,
-            line: 0,
-        };
-        Surfaces::of_scan(&scan, 0.0, 1, &|_| true)
+        scanned(&[((2.0, -20.0), (2.0, 2.0)), ((-20.0, 2.0), (2.0, 2.0))])
     }
 
     /// The range each of 20 pings of a transducer at `o` facing `deg` reads, mm.
@@ -249,7 +229,7 @@ mod tests {
         assert!(heard.iter().all(|&r| (2800..2900).contains(&r)), "{heard:?}");
     }
 
-    /// A laser at the origin facing +x over 180°, among `walls`.
+    /// A laser at the origin facing +x over 180°, among `walls` (its reach 10 m).
     fn scanned(walls: &[(P, P)]) -> Surfaces {
         let ranges = (0..361)
             .map(|i| {
@@ -259,7 +239,7 @@ mod tests {
                     .iter()
                     .filter_map(|&(a, c)| crate::bench::brute::ray_cross((0.0, 0.0), d, a, c))
                     .map(|p| p.0.hypot(p.1))
-                    .filter(|&t| t > 0.0)
+                    .filter(|&t| t > 0.0 && t < 10.0)
                     .fold(f64::INFINITY, f64::min) as f32
             })
             .collect();
