@@ -52,6 +52,9 @@ pub struct BoardArgs {
     /// C-space buffer for a .yaml or .geojson map, mm.
     #[arg(long = "buffer-mm", default_value_t = 100)]
     pub buffer_mm: u32,
+    /// Readings the board's driver could not report.
+    #[command(flatten)]
+    pub unreportable: crate::scenario::DriverArgs,
     /// How a .yaml map's walls are drawn.
     #[command(flatten)]
     pub grid: crate::map::load::GridArgs,
@@ -125,7 +128,7 @@ pub fn board_cmd(a: &BoardArgs) -> Result<String, LabError> {
         )));
     }
     let given = a.initial_pose.as_deref().map(|s| parse_pose(s, "--initial-pose")).transpose()?;
-    let (mounts, log, source) = match (&a.log, &a.bag) {
+    let (mounts, mut log, source) = match (&a.log, &a.bag) {
         (_, Some(b)) => {
             let bag = crate::bag::cli::load(b, &a.topics, a.ring.as_deref())?;
             (bag.ring.clone(), Log { rows: bag.rows }, b)
@@ -143,6 +146,10 @@ pub fn board_cmd(a: &BoardArgs) -> Result<String, LabError> {
             mounts.len()
         )));
     }
+    // What the board's driver could not have reported, as it would report
+    // it: the host replays the same, so that the figures compare.
+    let unreportable = crate::scenario::as_the_driver_reports(&mut log, mounts.len(), &a.unreportable)
+        .map_err(|e| LabError(format!("{}: {e}", source.display())))?;
     let loaded = crate::map::load::load(&a.map, &a.grid.options(a.buffer_mm, true))?;
     let (map, blob, crc) = (loaded.view()?, loaded.blob(), loaded.crc());
     // The scenario for the board.
@@ -197,6 +204,7 @@ pub fn board_cmd(a: &BoardArgs) -> Result<String, LabError> {
     let v: Value = json!({
         "map": {"path": a.map.display().to_string(), "crc": format!("{crc:#010x}"), "bytes": blob.len()},
         "scenario": {"records": records.len(), "bytes": scn.len(), "cycles": records.last().map_or(0, |r| r.cycle + 1)},
+        "unreportable": unreportable.json(),
         "host": {
             "final_pose": hp.map(r6),
             "position_rmse_m": host["ekf"]["position_rmse_m"],

@@ -48,6 +48,106 @@ pub struct ScenarioArgs {
     /// with a reference pose on every row: 0.05,1; without: none).
     #[arg(long)]
     pub bounds: Option<String>,
+    /// Readings the board's driver could not report (inside its blanking,
+    /// beyond its listening window).
+    #[command(flatten)]
+    pub unreportable: DriverArgs,
+}
+
+/// What to do with a log's readings the board's driver could not have
+/// reported (a log from another driver or another simulator).
+#[derive(Args, Clone, Debug, Default)]
+pub struct DriverArgs {
+    /// The blanking of the driver the board emulates, mm: a reading nearer
+    /// is given to it as no echo (default: the Polaroid 6500's own 2.38 ms,
+    /// 408 mm; only longer ones can be emulated, the QEMU bench drives no
+    /// BINH).
+    #[arg(long = "blanking-mm")]
+    pub blanking_mm: Option<u32>,
+    /// Refuse such a log instead (as before: the board cannot reproduce it).
+    #[arg(long = "refuse-unreportable")]
+    pub refuse: bool,
+}
+
+/// How many of a log's readings were given to the board as its driver
+/// would report them.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Unreportable {
+    /// Readings nearer than the blanking, given as no echo.
+    pub inside_blanking: usize,
+    /// Readings beyond the listening window, given as no echo (the driver
+    /// reports an echo after its window as none).
+    pub beyond_window: usize,
+    /// The blanking used, mm.
+    pub blanking_mm: u32,
+    /// The farthest range the driver reports, mm.
+    pub window_mm: u32,
+}
+
+impl Unreportable {
+    /// The JSON the commands print.
+    pub fn json(&self) -> serde_json::Value {
+        json!({
+            "inside_blanking": self.inside_blanking,
+            "beyond_window": self.beyond_window,
+            "given_as": "no echo",
+            "blanking_mm": self.blanking_mm,
+            "window_mm": self.window_mm,
+        })
+    }
+}
+
+/// Gives `log`'s readings that the board's driver (a ring of `n`, the
+/// standard [`FiringPlan`]) could not report as it would report them: an
+/// echo inside its blanking is not heard, one after its listening window
+/// ends the ping as no echo. Nothing is known of what a later echo would
+/// have been, so both become no echo, the same for the host's replay and
+/// the board's. `blanking_mm` lengthens the blanking (a driver that ignores
+/// near echoes); one shorter than the module's own is refused, since the
+/// board's driver ends blanking only by BINH, which the replay bench does
+/// not drive. With `refuse`, any such reading refuses the log (naming its
+/// line).
+pub fn as_the_driver_reports(log: &mut Log, n: usize, a: &DriverArgs) -> Result<Unreportable, String> {
+    let plan = FiringPlan::new(n, None).map_err(|e| format!("ring of {n}: {e}"))?;
+    let own_mm = plan.range_mm(plan.min_echo_us());
+    let window_mm = plan.range_mm(plan.window_us()) - 1;
+    let blanking_mm = match a.blanking_mm {
+        Some(b) if b < own_mm => {
+            return Err(format!(
+                "--blanking-mm {b}: the board's driver (a Polaroid 6500 without BINH) hears nothing nearer than                  {own_mm} mm; a shorter blanking needs BINH, which the QEMU replay bench does not drive"
+            ))
+        }
+        Some(b) if b > window_mm => {
+            return Err(format!("--blanking-mm {b}: beyond the driver's listening window ({window_mm} mm)"))
+        }
+        Some(b) => b,
+        None => own_mm,
+    };
+    let mut u = Unreportable { blanking_mm, window_mm, ..Unreportable::default() };
+    for r in &mut log.rows {
+        let Some(mm) = r.range_mm else { continue };
+        let near = mm < blanking_mm;
+        if !near && mm <= window_mm {
+            continue;
+        }
+        if a.refuse {
+            return Err(if near {
+                format!("line {}: range {mm} mm is inside the driver's blanking (it reports nothing nearer than {blanking_mm} mm)", r.line)
+            } else {
+                format!(
+                    "line {}: range {mm} mm is beyond the driver's listening window (at most {window_mm} mm)",
+                    r.line
+                )
+            });
+        }
+        if near {
+            u.inside_blanking += 1;
+        } else {
+            u.beyond_window += 1;
+        }
+        r.range_mm = None;
+    }
+    Ok(u)
 }
 
 /// `scenario …` subcommands.
@@ -113,7 +213,9 @@ fn convert(
     check_writable(out)?;
     let given = a.initial_pose.as_deref().map(|s| parse_pose(s, "--initial-pose")).transpose()?;
     let mounts = ring_mounts(&a.ring)?;
-    let log = crate::log::read_file(log_path, mounts.len())?;
+    let mut log = crate::log::read_file(log_path, mounts.len())?;
+    let unreportable = as_the_driver_reports(&mut log, mounts.len(), &a.unreportable)
+        .map_err(|e| LabError(format!("{}: {e}", log_path.display())))?;
     let loaded = load_map_with_field(map, a.buffer_mm)?;
     let (mut header, records) =
         from_log(&log, &mounts, loaded.crc(), given).map_err(|e| LabError(format!("{}: {e}", log_path.display())))?;
@@ -141,6 +243,7 @@ fn convert(
         "reference": reference,
         "bounds": if bounded { json!([header.bound_position_m, header.bound_heading_deg]) } else { json!(null) },
         "start": header.start,
+        "unreportable": unreportable.json(),
     })
     .to_string())
 }
@@ -257,4 +360,52 @@ pub fn from_log(
         bound_heading_deg,
     };
     Ok((header, records))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn log(ranges: &[Option<u32>]) -> Log {
+        let rows = ranges
+            .iter()
+            .enumerate()
+            .map(|(i, &range_mm)| Row {
+                time_s: 0.04 * i as f64,
+                transducer: (i % 16) as u8,
+                range_mm,
+                odometry: [0.0; 3],
+                reference: None,
+                line: i as u64 + 2,
+            })
+            .collect();
+        Log { rows }
+    }
+
+    #[test]
+    fn readings_the_driver_cannot_report_are_given_as_no_echo() {
+        // The 6500's blanking, 2.38 ms, at 20 °C (331.3 m/s × √(1 + 20/273.15)
+        // = 343.2 m/s): 408 mm, by hand; its window, 5.5 m.
+        let mut l = log(&[Some(379), Some(1000), None, Some(6000), Some(420)]);
+        let u = as_the_driver_reports(&mut l, 16, &DriverArgs::default()).unwrap();
+        assert!((405..=410).contains(&u.blanking_mm), "{u:?}");
+        assert!((5490..=5510).contains(&u.window_mm), "{u:?}");
+        assert_eq!((u.inside_blanking, u.beyond_window), (1, 1));
+        let got: Vec<Option<u32>> = l.rows.iter().map(|r| r.range_mm).collect();
+        assert_eq!(got, [None, Some(1000), None, None, Some(420)]);
+        // A longer blanking takes the 420 mm reading too.
+        let mut l = log(&[Some(379), Some(1000), Some(420)]);
+        let u = as_the_driver_reports(&mut l, 16, &DriverArgs { blanking_mm: Some(500), refuse: false }).unwrap();
+        assert_eq!((u.inside_blanking, u.blanking_mm), (2, 500));
+        // A shorter one cannot be emulated; refusing names the line.
+        let e =
+            as_the_driver_reports(&mut log(&[Some(379)]), 16, &DriverArgs { blanking_mm: Some(300), refuse: false });
+        assert!(e.unwrap_err().contains("BINH"));
+        let e = as_the_driver_reports(
+            &mut log(&[Some(1000), Some(379)]),
+            16,
+            &DriverArgs { blanking_mm: None, refuse: true },
+        );
+        assert!(e.unwrap_err().starts_with("line 3: range 379 mm is inside the driver's blanking"));
+    }
 }

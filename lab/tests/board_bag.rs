@@ -107,3 +107,68 @@ fn a_ring_the_board_does_not_drive_is_refused() {
         .unwrap();
     assert!(String::from_utf8_lossy(&o.stderr).contains("--firmware /nonexistent/replay: no such file (build it"));
 }
+
+/// A log from another driver (#37 item 7): readings nearer than this
+/// driver's blanking reach the board as this driver would report them (no
+/// echo), counted, and the host replays the same; the board's final pose
+/// is the host's. Asked to refuse, the board names the line.
+#[test]
+fn a_foreign_logs_near_readings_reach_the_board_as_no_echo() {
+    let elf = board_binary("replay");
+    let map = shared_map("bookstore.yaml");
+    let log = tmp("board", "near.csv");
+    run_json(&["simulate", "--json", "--map", s(&map), "--seed", "2", "--distance-m", "10", "--log", s(&log)]);
+    // Every 40th reading with an echo becomes 379 mm, as another driver
+    // with a shorter blanking would have logged.
+    let text = std::fs::read_to_string(&log).unwrap();
+    let mut lines: Vec<String> = text.lines().map(str::to_string).collect();
+    let col = lines[0].split(',').position(|c| c == "range_mm").unwrap();
+    let (mut near, mut first) = (0, None);
+    for (i, l) in lines.iter_mut().enumerate().skip(1) {
+        let mut f: Vec<String> = l.split(',').map(str::to_string).collect();
+        if i % 40 == 0 && !f[col].is_empty() {
+            f[col] = "379".into();
+            near += 1;
+            first.get_or_insert(i + 1);
+            *l = f.join(",");
+        }
+    }
+    assert!(near >= 3);
+    let foreign = tmp("board", "near-foreign.csv");
+    std::fs::write(&foreign, lines.join("\n") + "\n").unwrap();
+
+    let v = run_json(&["board", "--json", "--map", s(&map), "--log", s(&foreign), "--firmware", s(&elf)]);
+    assert_eq!(v["unreportable"]["inside_blanking"], near, "{v}");
+    assert_eq!(v["unreportable"]["beyond_window"], 0, "{v}");
+    assert_eq!(v["board"]["readings"], v["host"]["readings"], "{v}");
+    let (b, h) = (&v["board"]["final_pose"], &v["host"]["final_pose"]);
+    let f = |x: &Value, i: usize| x[i].as_f64().unwrap();
+    let d_mm = (f(b, 0) - f(h, 0)).hypot(f(b, 1) - f(h, 1)) * 1000.0;
+    assert!(d_mm <= 1.0 && (f(b, 2) - f(h, 2)).abs() <= 1e-3, "board {b} against host {h}");
+
+    let o = lab()
+        .args([
+            "board",
+            "--json",
+            "--map",
+            s(&map),
+            "--log",
+            s(&foreign),
+            "--firmware",
+            s(&elf),
+            "--refuse-unreportable",
+        ])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success()
+            && err.contains(&format!("line {}: range 379 mm is inside the driver's blanking", first.unwrap())),
+        "{err}"
+    );
+    let o = lab()
+        .args(["board", "--map", s(&map), "--log", s(&foreign), "--firmware", s(&elf), "--blanking-mm", "300"])
+        .output()
+        .unwrap();
+    assert!(!o.status.success() && String::from_utf8_lossy(&o.stderr).contains("BINH"));
+}

@@ -210,10 +210,20 @@ fn logs_the_driver_could_not_have_made_are_not_converted() {
     let log = tmp("logbad", "blanking.csv");
     std::fs::write(&log, &text).unwrap();
     let scn = tmp("logbad", "blanking.scn");
-    let o = lab().args(["scenario", "--from-log", s(&log), "--map", s(&depot_blob()), "-o", s(&scn)]).output().unwrap();
+    let o = lab()
+        .args(["scenario", "--from-log", s(&log), "--map", s(&depot_blob()), "-o", s(&scn), "--refuse-unreportable"])
+        .output()
+        .unwrap();
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(!o.status.success() && err.contains("line 7: range 200 mm is inside the driver's blanking"), "{err}");
     assert!(!scn.exists());
+    // By default (#37) it reaches the driver as the driver reports it: no echo, counted.
+    let v = run_json(&["scenario", "--from-log", s(&log), "--map", s(&depot_blob()), "-o", s(&scn)]);
+    assert_eq!((v["unreportable"]["inside_blanking"].as_u64(), v["records"].as_u64()), (Some(1), Some(16)), "{v}");
+    let bytes = std::fs::read(&scn).unwrap();
+    let sc = echoloc::scenario::Scenario::parse(&bytes).unwrap();
+    assert!(sc.records().all(|r| r.echo_us.is_none()));
+    std::fs::remove_file(&scn).unwrap();
     // A cycle that lacks transducers: the driver fires all of them.
     let text = format!("{HEAD}\n0,0,,0,0,0\n0.1,1,,0,0,0\n0.2,0,,0,0,0\n");
     std::fs::write(&log, text).unwrap();
