@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Writes ROS 2 bags (rosbag2, MCAP storage) of a robot run, with PyPI's
+"""Writes ROS 2 bags (rosbag2, MCAP or sqlite3 storage) of a robot run, with PyPI's
 `rosbags` (its own message definitions and CDR serializer, independent of
 echoloc), and beside each the plain log (docs/log.md) that ROS's documented
 semantics make of it: the oracle `echoloc-lab replay --bag` is checked against.
@@ -27,21 +27,29 @@ REP 117 in the oracle: Range.range is float32 metres; a range above
 max_range (5 m here) or below min_range (0.45 m) is no echo, as is +Inf (the
 writer's "no return").
 
+--storage mcap|sqlite3 chooses rosbag2's storage plugin: MCAP (Iron's
+default, `<name>.mcap`) or sqlite3 (Humble's, `<name>.db3`); the messages,
+their order and their bytes are the same in both.
+
 --break KIND writes a malformed bag (no oracle log), each a row of
 docs/bags.md's table: no-range, no-transform, negative, nan, mm, backwards,
-no-odom, bad-limits, truncated-message, cloud-count, sqlite, chunk,
-truncated-file, chunk-crc (with --chunks: a byte flipped in a compressed chunk).
+no-odom, bad-limits, truncated-message, cloud-count (either storage), chunk,
+truncated-file, chunk-crc (MCAP; chunk-crc with --chunks: a byte flipped in a
+compressed chunk), no-topics-table, no-messages-table, truncated-blob
+(sqlite3: a table dropped, or the third message's data cut to 10 bytes, with
+python's own sqlite3 module after rosbags has written the bag).
 
 --chunks zstd|lz4 rewrites the bag's MCAP with PyPI's mcap writer, its chunks
 compressed as rosbag2's storage presets do (every message as it was).
 
-Usage: python3 scripts/fixture-bag.py LOG.csv OUT_DIR --form range [--expected OUT.csv] [--break KIND] [--chunks zstd]
+Usage: python3 scripts/fixture-bag.py LOG.csv OUT_DIR --form range [--storage sqlite3] [--expected OUT.csv] [--break KIND] [--chunks zstd]
 """
 import argparse
 import csv
 import math
 import os
 import shutil
+import sqlite3
 import struct
 import sys
 
@@ -161,13 +169,19 @@ def main():
     ap.add_argument("--break", dest="brk")
     ap.add_argument("--chunks", choices=["none", "zstd", "lz4"], default="none",
                     help="rewrite the MCAP with compressed chunks (PyPI's mcap writer)")
+    ap.add_argument("--storage", choices=["mcap", "sqlite3"], default="mcap",
+                    help="rosbag2's storage plugin: mcap (Iron's default) or sqlite3 (Humble's, .db3)")
     a = ap.parse_args()
+    mcap_only = a.chunks != "none" or a.brk in ("chunk", "truncated-file", "chunk-crc")
+    sqlite_only = a.brk in ("no-topics-table", "no-messages-table", "truncated-blob")
+    if (a.storage == "sqlite3" and mcap_only) or (a.storage == "mcap" and sqlite_only):
+        ap.error(f"--break {a.brk} / --chunks {a.chunks} does not apply to --storage {a.storage}")
     rows = read_log(a.log)
     brk = a.brk
     m = Msgs(Stores.ROS2_JAZZY if a.form == "frame" else Stores.ROS2_HUMBLE)
     if os.path.exists(a.out):
         shutil.rmtree(a.out)
-    storage = StoragePlugin.SQLITE3 if brk == "sqlite" else StoragePlugin.MCAP
+    storage = StoragePlugin.SQLITE3 if a.storage == "sqlite3" else StoragePlugin.MCAP
     expected = []
     with Writer(a.out, version=8, storage_plugin=storage) as w:
         conns = {}
@@ -266,6 +280,17 @@ def main():
                     pts = pts[:8]
                 cloud = m.T["sensor_msgs/msg/PointCloud"](header=m.header(t, "base_link"), points=pts, channels=[])
                 put("/sonar", cloud, t)
+    if sqlite_only:
+        db3 = next(os.path.join(a.out, f) for f in os.listdir(a.out) if f.endswith(".db3"))
+        con = sqlite3.connect(db3)
+        if brk == "truncated-blob":
+            # The third message written (the range form's first /ground_truth)
+            # keeps its first 10 bytes: the CDR header and 6 bytes of stamp.
+            con.execute("UPDATE messages SET data = substr(data, 1, 10) WHERE id = 3")
+        else:
+            con.execute("DROP TABLE " + {"no-topics-table": "topics", "no-messages-table": "messages"}[brk])
+        con.commit()
+        con.close()
     if brk in ("chunk", "truncated-file"):
         mcap = next(os.path.join(a.out, f) for f in os.listdir(a.out) if f.endswith(".mcap"))
         data = bytearray(open(mcap, "rb").read())

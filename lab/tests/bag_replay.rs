@@ -254,11 +254,6 @@ fn a_truncated_file() {
 }
 
 #[test]
-fn sqlite_storage() {
-    refused("b-sqlite", "range", "sqlite", "metadata.yaml: storage_identifier \"sqlite3\": echoloc reads MCAP");
-}
-
-#[test]
 fn a_cloud_with_another_point_count() {
     refused(
         "b-cc",

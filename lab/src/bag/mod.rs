@@ -1,5 +1,6 @@
-//! ROS 2 bags in: a rosbag2 recording in MCAP (a bag directory with its
-//! `metadata.yaml`, or a bare `.mcap`) read as the plain log
+//! ROS 2 bags in: a rosbag2 recording in MCAP or sqlite3 (Humble's
+//! default) storage (a bag directory with its `metadata.yaml`, or a bare
+//! `.mcap` or `.db3`) read as the plain log
 //! ([`crate::log`]) that `replay` and `scenario --from-log` take
 //! (`docs/bags.md`).
 //!
@@ -28,6 +29,7 @@
 pub mod cli;
 pub mod msgs;
 pub mod source;
+mod sqlite;
 pub mod write;
 
 use std::collections::BTreeMap;
@@ -227,6 +229,8 @@ pub enum BagError {
     Metadata { path: PathBuf, problem: String },
     /// The MCAP file is damaged (a bad chunk, a CRC mismatch, truncated).
     Unreadable { path: PathBuf, problem: String },
+    /// The sqlite3 storage file (`.db3`) is not rosbag2's: not SQLite, damaged, a table or column missing.
+    Sqlite { path: PathBuf, problem: String },
     /// A topic not in CDR with a ros2msg schema.
     Encoding { topic: String, problem: String },
     /// No topic of a type echoloc takes ranges from.
@@ -270,6 +274,7 @@ impl fmt::Display for BagError {
             Self::Io { path, problem } => write!(f, "{}: {problem}", path.display()),
             Self::Metadata { path, problem } => write!(f, "{}: {problem}", path.display()),
             Self::Unreadable { path, problem } => write!(f, "{}: unreadable MCAP: {problem}", path.display()),
+            Self::Sqlite { path, problem } => write!(f, "{}: unreadable sqlite3 bag: {problem}", path.display()),
             Self::Encoding { topic, problem } => write!(f, "topic {topic}: {problem}"),
             Self::NoRangeTopic { topics } => write!(
                 f,

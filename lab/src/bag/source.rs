@@ -1,6 +1,9 @@
-//! Opening a bag: a rosbag2 directory (its `metadata.yaml` naming the MCAP
-//! files, in order) or a bare `.mcap` file, and every message of the types
-//! echoloc reads, grouped by topic.
+//! Opening a bag: a rosbag2 directory (its `metadata.yaml` naming the
+//! storage files, in order) or a bare `.mcap` or `.db3` file, and every
+//! message of the types echoloc reads, grouped by topic. Two storages:
+//! MCAP (here) and sqlite3 (`super::sqlite`), each file read by what it is
+//! (a `.db3` name or SQLite's magic bytes), both giving the same
+//! [`Messages`].
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -8,7 +11,7 @@ use std::path::{Path, PathBuf};
 use serde::Deserialize;
 
 use super::msgs::types;
-use super::BagError;
+use super::{sqlite, BagError};
 
 /// One message as stored: its topic's index in [`Messages::topics`], and
 /// its CDR bytes.
@@ -56,8 +59,8 @@ struct Info {
     compression_format: String,
 }
 
-/// The MCAP files of the bag at `path`: a directory's `metadata.yaml`
-/// names them; a file is one.
+/// The storage files (MCAP or sqlite3) of the bag at `path`: a
+/// directory's `metadata.yaml` names them; a file is one.
 pub fn files(path: &Path) -> Result<Vec<PathBuf>, BagError> {
     if !path.is_dir() {
         if !path.exists() {
@@ -68,17 +71,17 @@ pub fn files(path: &Path) -> Result<Vec<PathBuf>, BagError> {
     let meta = path.join("metadata.yaml");
     let text = std::fs::read_to_string(&meta).map_err(|e| BagError::Io {
         path: meta.clone(),
-        problem: format!("{e} (a rosbag2 directory has a metadata.yaml; or give the .mcap file itself)"),
+        problem: format!("{e} (a rosbag2 directory has a metadata.yaml; or give the .mcap or .db3 file itself)"),
     })?;
     let m: Metadata =
         serde_norway::from_str(&text).map_err(|e| BagError::Metadata { path: meta.clone(), problem: e.to_string() })?;
     let info = m.rosbag2_bagfile_information;
-    if info.storage_identifier != "mcap" {
+    if !matches!(info.storage_identifier.as_str(), "mcap" | "sqlite3") {
         return Err(BagError::Metadata {
             path: meta,
             problem: format!(
-                "storage_identifier {:?}: echoloc reads MCAP, rosbag2's default since Iron \
-                 (convert with `ros2 bag convert` to storage mcap)",
+                "storage_identifier {:?}: echoloc reads rosbag2's mcap (the default since Iron) and sqlite3 \
+                 (Humble's) storages",
                 info.storage_identifier
             ),
         });
@@ -103,19 +106,29 @@ pub fn files(path: &Path) -> Result<Vec<PathBuf>, BagError> {
 pub const SONAR_TYPES: &[&str] = &[types::RANGE, types::POINT_CLOUD, types::ODOMETRY, types::POSE_COV, types::TF];
 
 /// Reads every message of `files` of the types a sonar bag is read from
-/// ([`SONAR_TYPES`]), checking each chunk's CRC.
+/// ([`SONAR_TYPES`]), checking each MCAP chunk's CRC.
 pub fn read(files: &[PathBuf]) -> Result<Messages, BagError> {
     read_types(files, SONAR_TYPES)
 }
 
 /// Reads every message of `files` whose type is one of `wanted` (the other
 /// topics are only counted: a laser's scans are large, and a sonar replay
-/// has no use for them), checking each chunk's CRC.
+/// has no use for them), checking each MCAP chunk's CRC. A file named
+/// `.db3`, or one that starts with SQLite's magic bytes, is read as
+/// rosbag2's sqlite3 storage; any other as MCAP.
 pub fn read_types(files: &[PathBuf], wanted: &[&str]) -> Result<Messages, BagError> {
     let mut out = Messages::default();
     for f in files {
+        if sqlite::is_db3(f) {
+            sqlite::read_file(f, wanted, &mut out)?;
+            continue;
+        }
         let bytes = std::fs::read(f).map_err(|e| BagError::Io { path: f.clone(), problem: e.to_string() })?;
-        read_bytes_of(&bytes, f, wanted, &mut out)?;
+        if bytes.starts_with(sqlite::MAGIC) {
+            sqlite::read_file(f, wanted, &mut out)?;
+        } else {
+            read_bytes_of(&bytes, f, wanted, &mut out)?;
+        }
     }
     Ok(out)
 }

@@ -232,7 +232,12 @@ pub enum Error {
 impl Error {
     /// Whether the message names the file already (the bag's own I/O and format errors).
     pub fn names_file(&self) -> bool {
-        matches!(self, Error::Bag(BagError::Io { .. } | BagError::Metadata { .. } | BagError::Unreadable { .. }))
+        matches!(
+            self,
+            Error::Bag(
+                BagError::Io { .. } | BagError::Metadata { .. } | BagError::Unreadable { .. } | BagError::Sqlite { .. }
+            )
+        )
     }
 }
 
