@@ -18,10 +18,7 @@ use std::process::Command;
 use clap::Args;
 use serde_json::{json, Value};
 
-use crate::bag::cli::BagTopics;
-use crate::log::Log;
 use crate::map::LabError;
-use crate::predict::ring_mounts;
 use crate::replay::{parse_pose, start, steps_of_log};
 use crate::simulate::{filters, report};
 
@@ -31,33 +28,12 @@ pub const BOARD_TRANSDUCERS: usize = 16;
 /// `board`.
 #[derive(Args)]
 pub struct BoardArgs {
-    /// The map the run was recorded on: a ROS map_server .yaml, a .geojson, or a compiled .map.
-    #[arg(long)]
-    pub map: PathBuf,
-    /// The run as a log (CSV, docs/log.md).
-    #[arg(long, required_unless_present = "bag", conflicts_with = "bag")]
-    pub log: Option<PathBuf>,
-    /// The run as a ROS 2 bag (docs/bags.md).
-    #[arg(long)]
-    pub bag: Option<PathBuf>,
-    /// The bag's topics (with --bag).
+    /// The run and its map.
     #[command(flatten)]
-    pub topics: BagTopics,
-    /// The ring: pioneer16 or a JSON file (default pioneer16; with --bag, the bag's /tf_static).
-    #[arg(long)]
-    pub ring: Option<String>,
-    /// Where the robot starts, x_m,y_m,θ_deg (default: the first reference pose, else the first odometry pose).
-    #[arg(long = "initial-pose", allow_hyphen_values = true)]
-    pub initial_pose: Option<String>,
-    /// C-space buffer for a .yaml or .geojson map, mm.
-    #[arg(long = "buffer-mm", default_value_t = 100)]
-    pub buffer_mm: u32,
+    pub input: crate::run_input::RunInput,
     /// Readings the board's driver could not report.
     #[command(flatten)]
     pub unreportable: crate::scenario::DriverArgs,
-    /// How a .yaml map's walls are drawn.
-    #[command(flatten)]
-    pub grid: crate::map::load::GridArgs,
     /// The board's `replay` firmware.
     #[arg(long, default_value = "target/thumbv7em-none-eabihf/release/replay")]
     pub firmware: PathBuf,
@@ -127,18 +103,8 @@ pub fn board_cmd(a: &BoardArgs) -> Result<String, LabError> {
             a.firmware.display()
         )));
     }
-    let given = a.initial_pose.as_deref().map(|s| parse_pose(s, "--initial-pose")).transpose()?;
-    let (mounts, mut log, source) = match (&a.log, &a.bag) {
-        (_, Some(b)) => {
-            let bag = crate::bag::cli::load(b, &a.topics, a.ring.as_deref())?;
-            (bag.ring.clone(), Log { rows: bag.rows }, b)
-        }
-        (Some(l), None) => {
-            let mounts = ring_mounts(a.ring.as_deref().unwrap_or("pioneer16"))?;
-            (mounts.clone(), crate::log::read_file(l, mounts.len())?, l)
-        }
-        (None, None) => return Err(LabError("give --log or --bag".into())),
-    };
+    let given = a.input.initial_pose.as_deref().map(|s| parse_pose(s, "--initial-pose")).transpose()?;
+    let crate::run_input::Run { mounts, mut log, source, .. } = a.input.read_run()?;
     if mounts.len() != BOARD_TRANSDUCERS {
         return Err(LabError(format!(
             "{}: a ring of {} transducers; the QEMU board drives {BOARD_TRANSDUCERS}",
@@ -150,7 +116,7 @@ pub fn board_cmd(a: &BoardArgs) -> Result<String, LabError> {
     // it: the host replays the same, so that the figures compare.
     let unreportable = crate::scenario::as_the_driver_reports(&mut log, mounts.len(), &a.unreportable)
         .map_err(|e| LabError(format!("{}: {e}", source.display())))?;
-    let loaded = crate::map::load::load(&a.map, &a.grid.options(a.buffer_mm, true))?;
+    let loaded = a.input.load_map()?;
     let (map, blob, crc) = (loaded.view()?, loaded.blob(), loaded.crc());
     // The scenario for the board.
     let (header, records) = crate::scenario::from_log(&log, &mounts, crc, given)
@@ -202,7 +168,7 @@ pub fn board_cmd(a: &BoardArgs) -> Result<String, LabError> {
     let dh = crate::simulate::world::wrap(bp[2] - hp[2]);
     let r6 = |v: f64| (v * 1e6).round() / 1e6;
     let v: Value = json!({
-        "map": {"path": a.map.display().to_string(), "crc": format!("{crc:#010x}"), "bytes": blob.len()},
+        "map": {"path": a.input.map.display().to_string(), "crc": format!("{crc:#010x}"), "bytes": blob.len()},
         "scenario": {"records": records.len(), "bytes": scn.len(), "cycles": records.last().map_or(0, |r| r.cycle + 1)},
         "unreportable": unreportable.json(),
         "host": {

@@ -67,6 +67,7 @@ pub mod map;
 pub mod predict;
 pub mod replay;
 pub mod ring;
+pub mod run_input;
 pub mod scenario;
 pub mod simulate;
 

@@ -13,36 +13,15 @@ use serde_json::json;
 pub use crate::log::cycles;
 use crate::log::Log;
 use crate::map::LabError;
-use crate::predict::ring_mounts;
 use crate::simulate::filters::{self, Start, Step};
 use crate::simulate::{check_writable, error_plot_path, figures, motion_f64, report, write_all, START_SIGMA};
 
 /// `replay`.
 #[derive(Args)]
 pub struct ReplayArgs {
-    /// The map: a blob (.map), a ROS map_server .yaml or a .geojson.
-    #[arg(long)]
-    pub map: PathBuf,
-    /// The log: CSV, one row per reading (docs/log.md).
-    #[arg(long, required_unless_present = "bag", conflicts_with = "bag")]
-    pub log: Option<PathBuf>,
-    /// A ROS 2 bag instead of a log: a rosbag2 directory (metadata.yaml) or
-    /// an .mcap file (docs/bags.md).
-    #[arg(long)]
-    pub bag: Option<PathBuf>,
-    /// The bag's topics (with --bag).
+    /// The run and its map.
     #[command(flatten)]
-    pub topics: crate::bag::cli::BagTopics,
-    /// The ring: pioneer16, or a JSON file of [x_m, y_m, heading_deg] per
-    /// transducer (default pioneer16; with --bag, the bag's /tf_static).
-    #[arg(long)]
-    pub ring: Option<String>,
-    /// Where the robot starts in the map: x_m,y_m,θ_deg (tracked from
-    /// there), x_m,y_m,θ_deg,σ_m,σ_deg (searched around there), or
-    /// `unknown` (searched for over the whole map). Default: the first
-    /// reference pose, else the first odometry pose, tracked.
-    #[arg(long = "initial-pose", allow_hyphen_values = true)]
-    pub initial_pose: Option<String>,
+    pub input: crate::run_input::RunInput,
     /// Writes one CSV row per ring cycle: the mode, the estimate, its σ and
     /// the reference where the log has one (docs/localization.md).
     #[arg(long)]
@@ -54,12 +33,6 @@ pub struct ReplayArgs {
     /// Seed of the particles' draws.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// C-space buffer for a .yaml or .geojson map, mm.
-    #[arg(long = "buffer-mm", default_value_t = 100)]
-    pub buffer_mm: u32,
-    /// How a .yaml map's walls are drawn.
-    #[command(flatten)]
-    pub grid: crate::map::load::GridArgs,
     /// One JSON object (the default prints the same, indented).
     #[arg(long)]
     pub json: bool,
@@ -133,6 +106,7 @@ pub fn replay_cmd(a: &ReplayArgs) -> Result<String, LabError> {
         check_writable(p)?;
     }
     let arg = a
+        .input
         .initial_pose
         .as_deref()
         .map(|s| crate::simulate::localization::parse_start(s, "--initial-pose"))
@@ -144,18 +118,8 @@ pub fn replay_cmd(a: &ReplayArgs) -> Result<String, LabError> {
         ) => Some(p),
         _ => None,
     };
-    let (mounts, log, source, bag) = match (&a.log, &a.bag) {
-        (_, Some(b)) => {
-            let bag = crate::bag::cli::load(b, &a.topics, a.ring.as_deref())?;
-            (bag.ring.clone(), Log { rows: bag.rows.clone() }, b, Some(bag))
-        }
-        (Some(l), None) => {
-            let mounts = ring_mounts(a.ring.as_deref().unwrap_or("pioneer16"))?;
-            (mounts.clone(), crate::log::read_file(l, mounts.len())?, l, None)
-        }
-        (None, None) => return Err(LabError("give --log or --bag".into())),
-    };
-    let loaded = crate::map::load::load(&a.map, &a.grid.options(a.buffer_mm, true))?;
+    let crate::run_input::Run { mounts, log, source, bag } = a.input.read_run()?;
+    let loaded = a.input.load_map()?;
     let map = loaded.view()?;
     let steps = steps_of_log(&log);
     let mut how = start(&log, given);
