@@ -19,9 +19,12 @@ Forms (--form):
              odom -> base_link, the reference as /amcl_pose
              (geometry_msgs/msg/PoseWithCovarianceStamped).
   cloud      RosAria: sensor_msgs/msg/PointCloud on /sonar, the whole ring per
-             cycle at the cycle's first firing time, one point per transducer in
-             base_link (mount + range along the axis; no echo as the point at
-             5 m), /odom and /ground_truth.
+             cycle at the cycle's first firing time (--cloud-stamp end: at the
+             next cycle's first firing, the ring's end), one point per
+             transducer in base_link (mount + range along the axis; no echo as
+             the point at 5 m), /odom and /ground_truth. Its --expected log
+             has every point of a cycle at its first firing (the bag read
+             with --ring-stamp one-instant).
 
 REP 117 in the oracle: Range.range is float32 metres; a range above
 max_range (5 m here) or below min_range (0.45 m) is no echo, as is +Inf (the
@@ -171,6 +174,9 @@ def main():
                     help="rewrite the MCAP with compressed chunks (PyPI's mcap writer)")
     ap.add_argument("--storage", choices=["mcap", "sqlite3"], default="mcap",
                     help="rosbag2's storage plugin: mcap (Iron's default) or sqlite3 (Humble's, .db3)")
+    ap.add_argument("--cloud-stamp", choices=["start", "end"], default="start",
+                    help="the cloud form's stamp: the cycle's first firing, or its end (the next "
+                         "cycle's first firing, as RosAria stamps when it publishes)")
     a = ap.parse_args()
     mcap_only = a.chunks != "none" or a.brk in ("chunk", "truncated-file", "chunk-crc")
     sqlite_only = a.brk in ("no-topics-table", "no-messages-table", "truncated-blob")
@@ -263,11 +269,16 @@ def main():
             if cur:
                 cycles.append(cur)
             P32 = m.T["geometry_msgs/msg/Point32"]
-            for cyc in cycles:
+            starts = [c[0]["t"] for c in cycles]
+            gaps = sorted(b - a_ for a_, b in zip(starts, starts[1:]))
+            median_period = gaps[len(gaps) // 2] if gaps else 0.0
+            for ci, cyc in enumerate(cycles):
                 if len(cyc) != 16:
                     continue
                 first = cyc[0]
                 t = ns(first["t"])
+                if a.cloud_stamp == "end":
+                    t = ns(starts[ci + 1]) if ci + 1 < len(starts) else ns(first["t"] + median_period)
                 by_i = {c["i"]: c["range_mm"] for c in cyc}
                 pts = []
                 for i, (x, y, deg) in enumerate(PIONEER16):

@@ -6,7 +6,7 @@ use std::path::PathBuf;
 use clap::Args;
 use serde_json::{json, Value};
 
-use super::{read, Bag, Options};
+use super::{read, Bag, CloudTiming, Options, RingStamp};
 use crate::map::LabError;
 use crate::simulate::{check_writable, write_all};
 
@@ -32,6 +32,30 @@ pub struct BagTopics {
     /// The odometry's frame, for odometry from /tf.
     #[arg(long = "odom-frame", default_value = "odom")]
     pub odom_frame: String,
+    /// A whole-ring PointCloud's ring cycle, s: its points' firing times
+    /// are rebuilt from it and the ring's firing order (the --ring file's
+    /// `order`; the Pioneer's two arrays at once, 0–7, by default). Default:
+    /// the --ring file's `period_s`, else RosAria's Pioneer, 0.32 s (ARCOS'
+    /// 40 ms SonarCycle, 8 slots).
+    #[arg(long = "ring-period")]
+    pub ring_period_s: Option<f64>,
+    /// What a whole-ring PointCloud's stamp marks: the ring's end (RosAria:
+    /// stamped when published, after the newest reading), its start, or
+    /// every point at the stamp (one instant: no rebuilding).
+    #[arg(long = "ring-stamp", value_enum, default_value = "end")]
+    pub ring_stamp: CloudStamp,
+}
+
+/// What a whole-ring message's stamp marks, on the command line.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
+pub enum CloudStamp {
+    /// The ring's end.
+    #[default]
+    End,
+    /// Its first firing.
+    Start,
+    /// Every point at the stamp.
+    OneInstant,
 }
 
 impl BagTopics {
@@ -47,13 +71,44 @@ impl BagTopics {
             ..Options::default()
         }
     }
+
+    /// When a whole-ring PointCloud's points fired, on a ring of `n` that
+    /// fires as `firing` says.
+    pub fn cloud_timing(&self, firing: &crate::ring::Firing, n: usize) -> Result<CloudTiming, LabError> {
+        let stamp = match self.ring_stamp {
+            CloudStamp::OneInstant => return Ok(CloudTiming::AtStamp),
+            CloudStamp::End => RingStamp::End,
+            CloudStamp::Start => RingStamp::Start,
+        };
+        let pioneer = n == 16 && firing.order.is_none();
+        let order = match &firing.order {
+            Some(o) => o.clone(),
+            None if pioneer => (0..8).map(|j| vec![j, j + 8]).collect(),
+            None => (0..n).map(|k| vec![k as u8]).collect(),
+        };
+        let period_s = match (self.ring_period_s, firing.period_s) {
+            (Some(p), _) | (None, Some(p)) => p,
+            (None, None) if pioneer => super::PIONEER_RING_PERIOD_NS as f64 / 1e9,
+            (None, None) => return Ok(CloudTiming::AtStamp),
+        };
+        if !(period_s.is_finite() && period_s > 0.0 && period_s <= 60.0) {
+            return Err(LabError(format!("--ring-period {period_s}: a ring cycle is more than 0 and at most 60 s")));
+        }
+        let slot_ns = firing.slot_s.map(|s| (s * 1e9).round() as i64);
+        CloudTiming::rebuilt(&order, n, (period_s * 1e9).round() as i64, slot_ns, stamp)
+            .map_err(|e| LabError(format!("--ring: {e}")))
+    }
 }
 
 /// Reads a bag for the command line: errors name the bag; the topics used
 /// are printed on stderr.
 pub fn load(path: &std::path::Path, topics: &BagTopics, ring: Option<&str>) -> Result<Bag, LabError> {
+    let firing = ring.map(crate::ring::firing).transpose()?.unwrap_or_default();
     let ring = ring.map(crate::predict::ring_mounts).transpose()?;
-    let bag = read(path, &topics.options(ring)).map_err(|e| LabError(format!("{}: {e}", path.display())))?;
+    let n = ring.as_ref().map_or(echoloc::predict::PIONEER16.len(), Vec::len);
+    let mut o = topics.options(ring);
+    o.cloud_timing = topics.cloud_timing(&firing, n)?;
+    let bag = read(path, &o).map_err(|e| LabError(format!("{}: {e}", path.display())))?;
     eprintln!("{}", used_line(&bag));
     Ok(bag)
 }
@@ -80,6 +135,7 @@ pub fn summary(bag: &Bag) -> Value {
             "odometry": u.odometry,
             "reference": u.reference,
             "ring": u.ring,
+            "cloud_timing": u.cloud_timing,
         },
         "transducers": bag.transducers.iter().map(|t| json!({
             "index": t.index,

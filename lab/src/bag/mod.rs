@@ -28,6 +28,7 @@
 
 pub mod cli;
 pub mod msgs;
+mod ranges;
 pub mod source;
 mod sqlite;
 pub mod write;
@@ -64,6 +65,122 @@ pub struct Options {
     pub odom_frame: String,
     /// A PointCloud point at this range or beyond is no echo, m (RosAria: 5).
     pub cloud_max_m: f64,
+    /// When a PointCloud's points were fired, given its one stamp.
+    pub cloud_timing: CloudTiming,
+}
+
+/// When a ring stamped once (a RosAria PointCloud) fired each transducer.
+#[derive(Clone, Debug, PartialEq)]
+pub enum CloudTiming {
+    /// Every point at the stamp.
+    AtStamp,
+    /// The ring fires slot by slot, `slot_ns` apart (a slot may fire
+    /// several transducers at once: a Pioneer's two arrays); the stamp is
+    /// the ring's start (its first slot) or its end (one period after).
+    Rebuilt {
+        /// Each transducer's slot.
+        slot_of: Vec<u32>,
+        /// Slots in a ring cycle.
+        slots: u32,
+        /// One slot, ns (at most `period_ns / slots`).
+        slot_ns: i64,
+        /// One ring cycle, ns.
+        period_ns: i64,
+        /// What the stamp marks.
+        stamp: RingStamp,
+    },
+}
+
+/// What a whole-ring message's stamp marks.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum RingStamp {
+    /// The ring's first firing.
+    Start,
+    /// The ring's end, one period after its first firing (RosAria stamps
+    /// the cloud when it publishes it, after the newest reading).
+    End,
+}
+
+/// RosAria's Pioneer: each 8-transducer array fires one transducer every
+/// 40 ms in the sequence 0–7, the two arrays at once (ARCOS' default
+/// `SonarCycle` and polling sequence), so a ring cycle is 320 ms, ns.
+pub const PIONEER_RING_PERIOD_NS: i64 = 320_000_000;
+
+impl fmt::Display for CloudTiming {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::AtStamp => write!(f, "every point at the stamp"),
+            Self::Rebuilt { slots, slot_ns, period_ns, stamp, .. } => write!(
+                f,
+                "rebuilt: {slots} slots {} s apart in a {} s cycle, the stamp at the ring's {}",
+                *slot_ns as f64 / 1e9,
+                *period_ns as f64 / 1e9,
+                match stamp {
+                    RingStamp::Start => "start",
+                    RingStamp::End => "end",
+                }
+            ),
+        }
+    }
+}
+
+impl CloudTiming {
+    /// A ring firing `order` (slots, each the transducers it fires) on a
+    /// ring of `n`, one slot every `slot_ns` (default: the period spread
+    /// evenly); every transducer must fire exactly once.
+    pub fn rebuilt(
+        order: &[Vec<u8>],
+        n: usize,
+        period_ns: i64,
+        slot_ns: Option<i64>,
+        stamp: RingStamp,
+    ) -> Result<Self, String> {
+        let mut slot_of = vec![u32::MAX; n];
+        for (s, slot) in order.iter().enumerate() {
+            for &t in slot {
+                let k = usize::from(t);
+                match slot_of.get_mut(k) {
+                    None => return Err(format!("the firing order names transducer {t}: the ring has {n}")),
+                    Some(v) if *v != u32::MAX => return Err(format!("the firing order fires transducer {t} twice")),
+                    Some(v) => *v = s as u32,
+                }
+            }
+        }
+        if let Some(k) = slot_of.iter().position(|&s| s == u32::MAX) {
+            return Err(format!("the firing order never fires transducer {k}"));
+        }
+        let slots = order.len() as i64;
+        let slot_ns = slot_ns.unwrap_or(period_ns / slots.max(1));
+        if period_ns <= 0 || slot_ns <= 0 || slot_ns * slots > period_ns {
+            return Err(format!(
+                "{slots} slots of {} s do not fit a ring cycle of {} s",
+                slot_ns as f64 / 1e9,
+                period_ns as f64 / 1e9
+            ));
+        }
+        Ok(Self::Rebuilt { slot_of, slots: slots as u32, slot_ns, period_ns, stamp })
+    }
+
+    /// RosAria's Pioneer ring of 16 (see [`PIONEER_RING_PERIOD_NS`]),
+    /// stamped at its end.
+    pub fn pioneer() -> Self {
+        let order: Vec<Vec<u8>> = (0..8).map(|j| vec![j, j + 8]).collect();
+        Self::rebuilt(&order, 16, PIONEER_RING_PERIOD_NS, None, RingStamp::End).unwrap_or(Self::AtStamp)
+    }
+
+    /// Point `k`'s firing time after the stamp (negative: before), ns.
+    pub fn offset_ns(&self, k: usize) -> i64 {
+        match self {
+            Self::AtStamp => 0,
+            Self::Rebuilt { slot_of, slot_ns, period_ns, stamp, .. } => {
+                let at = i64::from(slot_of.get(k).copied().unwrap_or(0)) * slot_ns;
+                match stamp {
+                    RingStamp::Start => at,
+                    RingStamp::End => at - period_ns,
+                }
+            }
+        }
+    }
 }
 
 impl Default for Options {
@@ -76,6 +193,7 @@ impl Default for Options {
             base_frame: "base_link".into(),
             odom_frame: "odom".into(),
             cloud_max_m: 5.0,
+            cloud_timing: CloudTiming::pioneer(),
         }
     }
 }
@@ -93,6 +211,8 @@ pub struct Used {
     pub reference: Option<String>,
     /// Where the ring came from: `/tf_static`, or `--ring`.
     pub ring: String,
+    /// For a whole-ring PointCloud, how its points' firing times were taken.
+    pub cloud_timing: Option<String>,
 }
 
 /// One transducer as the bag names it.
@@ -438,29 +558,6 @@ impl Track {
 /// between (a localiser that stopped publishing), ns.
 pub const REFERENCE_MAX_GAP_NS: i64 = 1_000_000_000;
 
-/// A reading before the ring is known: (stamp ns, order, frame or point index, range).
-struct Raw {
-    stamp: i64,
-    transducer: Key,
-    range_mm: Option<u32>,
-    topic: usize,
-    index: usize,
-}
-
-#[derive(Clone, Debug, PartialEq, Eq, PartialOrd, Ord)]
-enum Key {
-    Frame(String),
-    Point(usize),
-}
-
-/// Sort key of a frame name: its trailing number, then the name
-/// (`sonar_2` before `sonar_10`).
-fn frame_order(f: &str) -> (u64, String) {
-    let digits: String =
-        f.chars().rev().take_while(char::is_ascii_digit).collect::<Vec<_>>().into_iter().rev().collect();
-    (digits.parse().unwrap_or(u64::MAX), f.to_string())
-}
-
 pub(crate) fn topics_of(m: &Messages) -> Vec<(String, String)> {
     m.topics.values().map(|t| (t.name.clone(), t.ty.clone())).collect()
 }
@@ -524,242 +621,44 @@ pub fn read(path: &Path, o: &Options) -> Result<Bag, BagError> {
     from_messages(&m, o)
 }
 
-/// The bag's messages as a log.
+/// The bag's messages as a log, stage by stage: the range topics, their
+/// readings ([`ranges`]), the ring, the odometry and the reference, then
+/// each reading as a row at its time.
 pub fn from_messages(m: &Messages, o: &Options) -> Result<Bag, BagError> {
     let mut used = Used::default();
-    // The range topics.
-    let range_topics: Vec<&str> = if o.ranges.is_empty() {
-        let r = of_type(m, types::RANGE);
-        if !r.is_empty() {
-            r
-        } else {
-            match of_type(m, types::POINT_CLOUD)[..] {
-                [] => return Err(BagError::NoRangeTopic { topics: topics_of(m) }),
-                [one] => vec![one],
-                ref several => match several.iter().find(|t| leaf(t) == "sonar") {
-                    Some(t) => vec![*t],
-                    None => {
-                        return Err(BagError::Ambiguous {
-                            what: "PointCloud",
-                            option: "--ranges",
-                            candidates: several.iter().map(|s| s.to_string()).collect(),
-                        })
-                    }
-                },
-            }
-        }
-    } else {
-        o.ranges
-            .iter()
-            .map(|t| named(m, "--ranges", t, &[types::RANGE, types::POINT_CLOUD]))
-            .collect::<Result<_, _>>()?
-    };
-    let cloud = m.topics[range_topics[0]].ty == types::POINT_CLOUD;
-    if range_topics.iter().any(|t| (m.topics[*t].ty == types::POINT_CLOUD) != cloud)
-        || (cloud && range_topics.len() > 1)
-    {
-        return Err(BagError::MixedRanges);
-    }
+    let (range_topics, cloud) = ranges::topics(m, o)?;
     used.ranges = range_topics.iter().map(|s| s.to_string()).collect();
-    used.ranges.sort_by_key(|t| frame_order(t));
+    used.ranges.sort_by_key(|t| ranges::frame_order(t));
     used.ranges_type = if cloud { types::POINT_CLOUD } else { types::RANGE }.into();
-
-    // The readings.
-    let mut raws: Vec<Raw> = Vec::new();
-    let mut no_echo = NoEcho::default();
-    let mut frames_of: BTreeMap<String, usize> = BTreeMap::new(); // frame -> topic index where first seen
-    let ring_for_cloud =
-        if cloud { Some(o.ring.clone().unwrap_or_else(|| echoloc::predict::PIONEER16.to_vec())) } else { None };
-    for (ti, topic) in range_topics.iter().enumerate() {
-        let mut last: Option<i64> = None;
-        for (index, s) in stored(m, topic).iter().enumerate() {
-            let (stamp, frame, readings): (msgs::Time, String, Vec<(Key, Option<u32>)>) = if cloud {
-                let c: msgs::PointCloud = decoded(topic, index, types::POINT_CLOUD, s)?;
-                let ring = ring_for_cloud.as_deref().unwrap_or_default();
-                let err = |problem| BagError::Message {
-                    topic: topic.to_string(),
-                    index,
-                    stamp_s: c.header.stamp.seconds(),
-                    problem,
-                };
-                if strip(&c.header.frame_id) != o.base_frame {
-                    return Err(err(MessageProblem::CloudFrame {
-                        frame: c.header.frame_id.clone(),
-                        base: o.base_frame.clone(),
-                    }));
-                }
-                if c.points.len() != ring.len() {
-                    return Err(err(MessageProblem::PointCount { found: c.points.len(), ring: ring.len() }));
-                }
-                let mut rs = Vec::with_capacity(ring.len());
-                for (k, (p, mount)) in c.points.iter().zip(ring).enumerate() {
-                    if !(p.x.is_finite() && p.y.is_finite()) {
-                        return Err(err(MessageProblem::BadPoint { point: k }));
-                    }
-                    let (dx, dy) = (
-                        f64::from(p.x) - f64::from(mount.x_mm) / 1000.0,
-                        f64::from(p.y) - f64::from(mount.y_mm) / 1000.0,
-                    );
-                    let r = dx.hypot(dy);
-                    let axis = f64::from(mount.heading_mdeg).to_radians() / 1000.0;
-                    if r > 0.05 {
-                        let off = wrap(dy.atan2(dx) - axis).abs().to_degrees();
-                        if off > 5.0 {
-                            return Err(err(MessageProblem::OffAxis { point: k, degrees: off }));
-                        }
-                    }
-                    let reading = if r >= o.cloud_max_m - 0.0005 {
-                        no_echo.beyond_max += 1;
-                        None
-                    } else if r * 1000.0 > MAX_RANGE_MM {
-                        return Err(err(MessageProblem::BeyondAnySonar { value: r }));
-                    } else if (r * 1000.0).round() < 1.0 {
-                        return Err(err(MessageProblem::ZeroRange));
-                    } else {
-                        Some((r * 1000.0).round() as u32)
-                    };
-                    rs.push((Key::Point(k), reading));
-                }
-                (c.header.stamp, c.header.frame_id, rs)
-            } else {
-                let r: msgs::Range = decoded(topic, index, types::RANGE, s)?;
-                let err = |problem| BagError::Message {
-                    topic: topic.to_string(),
-                    index,
-                    stamp_s: r.header.stamp.seconds(),
-                    problem,
-                };
-                let frame = strip(&r.header.frame_id).to_string();
-                if frame.is_empty() {
-                    return Err(err(MessageProblem::NoFrame));
-                }
-                let (lo, hi) = (r.min_range, r.max_range);
-                if !(lo.is_finite() && hi.is_finite() && lo >= 0.0 && lo < hi) {
-                    return Err(err(MessageProblem::BadLimits { min: lo, max: hi }));
-                }
-                if f64::from(hi) * 1000.0 > MAX_RANGE_MM {
-                    return Err(err(MessageProblem::BeyondAnySonar { value: f64::from(hi) }));
-                }
-                let v = r.range;
-                let reading = if v.is_nan() {
-                    return Err(err(MessageProblem::NanRange));
-                } else if v == f32::INFINITY {
-                    no_echo.infinite += 1;
-                    None
-                } else if v == f32::NEG_INFINITY {
-                    no_echo.too_close += 1;
-                    None
-                } else if v < 0.0 {
-                    return Err(err(MessageProblem::NegativeRange(v)));
-                } else if v == 0.0 {
-                    return Err(err(MessageProblem::ZeroRange));
-                } else if v > hi {
-                    no_echo.beyond_max += 1;
-                    None
-                } else if v < lo {
-                    no_echo.below_min += 1;
-                    None
-                } else {
-                    let mm = (f64::from(v) * 1000.0).round();
-                    if mm < 1.0 {
-                        return Err(err(MessageProblem::ZeroRange));
-                    }
-                    Some(mm as u32)
-                };
-                frames_of.entry(frame.clone()).or_insert(ti);
-                (r.header.stamp, frame.clone(), vec![(Key::Frame(frame), reading)])
-            };
-            let _ = frame;
-            let t = stamp.seconds().map(|_| stamp.nanos()).ok_or(BagError::Message {
-                topic: topic.to_string(),
-                index,
-                stamp_s: None,
-                problem: MessageProblem::BadStamp,
-            })?;
-            if let Some(prev) = last {
-                if t < prev {
-                    return Err(BagError::TimeBackwards {
-                        topic: topic.to_string(),
-                        index,
-                        stamp_s: t as f64 / 1e9,
-                        previous_s: prev as f64 / 1e9,
-                    });
-                }
-            }
-            last = Some(t);
-            for (transducer, range_mm) in readings {
-                raws.push(Raw { stamp: t, transducer, range_mm, topic: ti, index });
-            }
-        }
+    if cloud {
+        used.cloud_timing = Some(o.cloud_timing.to_string());
     }
-
-    // The ring: the transducers in frame order, mounts from /tf_static or --ring.
-    let (ring, transducers, index_of): (Vec<Mount>, Vec<Transducer>, BTreeMap<Key, u8>) =
-        if let Some(ring) = ring_for_cloud {
-            used.ring = if o.ring.is_some() {
-                "--ring".into()
-            } else {
-                "pioneer16 (RosAria's Pioneer ring; --ring to change)".into()
-            };
-            let t = ring
-                .iter()
-                .enumerate()
-                .map(|(i, &mount)| Transducer { index: i as u8, frame: format!("point {i}"), mount })
-                .collect();
-            let idx = (0..ring.len()).map(|i| (Key::Point(i), i as u8)).collect();
-            (ring, t, idx)
-        } else {
-            let mut frames: Vec<&String> = frames_of.keys().collect();
-            frames.sort_by_key(|f| frame_order(f));
-            if frames.len() > 255 {
-                return Err(BagError::TooManyTransducers(frames.len()));
-            }
-            let mounts: Vec<Mount> = match &o.ring {
-                Some(ring) => {
-                    if ring.len() != frames.len() {
-                        return Err(BagError::RingSize {
-                            frames: frames.iter().map(|s| s.to_string()).collect(),
-                            ring: ring.len(),
-                        });
-                    }
-                    used.ring = "--ring".into();
-                    ring.clone()
-                }
-                None => {
-                    used.ring = "/tf_static".into();
-                    let statics = static_transforms(m)?;
-                    frames
-                        .iter()
-                        .map(|f| {
-                            let p = chain(&statics, &o.base_frame, f).ok_or_else(|| BagError::NoTransform {
-                                topic: range_topics[frames_of[*f]].to_string(),
-                                frame: f.to_string(),
-                                base: o.base_frame.clone(),
-                            })?;
-                            Ok(Mount {
-                                x_mm: (p[0] * 1000.0).round() as i32,
-                                y_mm: (p[1] * 1000.0).round() as i32,
-                                heading_mdeg: (wrap(p[2]).to_degrees() * 1000.0).round() as i32,
-                            })
-                        })
-                        .collect::<Result<_, BagError>>()?
-                }
-            };
-            let t = frames
-                .iter()
-                .zip(&mounts)
-                .enumerate()
-                .map(|(i, (f, &mount))| Transducer { index: i as u8, frame: f.to_string(), mount })
-                .collect();
-            let idx = frames.iter().enumerate().map(|(i, f)| (Key::Frame(f.to_string()), i as u8)).collect();
-            (mounts, t, idx)
-        };
-
-    // Odometry.
+    let cloud_ring =
+        if cloud { Some(o.ring.clone().unwrap_or_else(|| echoloc::predict::PIONEER16.to_vec())) } else { None };
+    let read = ranges::readings(m, o, &range_topics, cloud_ring.as_deref())?;
+    let ring = ranges::ring(m, o, &range_topics, &read.frames_of, cloud_ring, &mut used)?;
     let odom = odometry(m, o, &mut used)?;
-    // Reference.
     let reference = reference(m, o, &used.odometry.clone(), &mut used)?;
+    let (rows, outside) = rows(read.raws, &ring.index_of, &odom, reference.as_ref(), &used.odometry)?;
+    Ok(Bag {
+        rows,
+        ring: ring.mounts,
+        transducers: ring.transducers,
+        used,
+        outside_odometry: outside,
+        no_echo: read.no_echo,
+    })
+}
 
+/// Each reading as a row at its time, with the odometry (and the
+/// reference) there; readings no odometry covers are left out and counted.
+fn rows(
+    mut raws: Vec<ranges::Raw>,
+    index_of: &BTreeMap<ranges::Key, u8>,
+    odom: &Track,
+    reference: Option<&Track>,
+    odom_topic: &str,
+) -> Result<(Vec<Row>, usize), BagError> {
     raws.sort_by_key(|r| r.stamp); // stable: ties keep the bag's order
     let mut rows = Vec::with_capacity(raws.len());
     let mut outside = 0;
@@ -768,20 +667,19 @@ pub fn from_messages(m: &Messages, o: &Options) -> Result<Bag, BagError> {
             outside += 1;
             continue;
         };
-        let reference = reference.as_ref().and_then(|t| t.at(r.stamp, REFERENCE_MAX_GAP_NS));
+        let reference = reference.and_then(|t| t.at(r.stamp, REFERENCE_MAX_GAP_NS));
         // A quaternion's heading is wrapped: the turn is the short way.
         if let Some((prev, t0)) = rows.last().map(|p: &Row| (p.odometry[2], p.time_s)) {
             let dt_s = r.stamp as f64 / 1e9 - t0;
             if turn_too_fast(wrap(odometry[2] - prev), dt_s) {
                 return Err(BagError::Message {
-                    topic: used.odometry.clone(),
+                    topic: odom_topic.to_string(),
                     index: 0,
                     stamp_s: Some(r.stamp as f64 / 1e9),
                     problem: MessageProblem::HeadingJump { from: prev, to: odometry[2], dt_s },
                 });
             }
         }
-        let _ = (r.topic, r.index);
         rows.push(Row {
             time_s: r.stamp as f64 / 1e9,
             transducer: index_of[&r.transducer],
@@ -794,7 +692,7 @@ pub fn from_messages(m: &Messages, o: &Options) -> Result<Bag, BagError> {
     if rows.is_empty() {
         return Err(BagError::NoReadings { outside_odometry: outside });
     }
-    Ok(Bag { rows, ring, transducers, used, outside_odometry: outside, no_echo })
+    Ok((rows, outside))
 }
 
 /// `/tf_static`'s transforms: child → (parent, pose of child in parent).
