@@ -4,9 +4,11 @@
 //! prediction for each of `dirs` headings.
 //!
 //! *Free* nodes are at least `clearance_mm` from every obstacle, outside all
-//! of them, and, for an occupancy grid, in a cell the grid knows to be free
-//! (unknown cells are not a place the robot is known to be able to stand,
-//! whatever `--unknown` made of them for the polygons). *Stored* nodes are
+//! of them, within their bounding box, and where `known_free` says the
+//! source's free space is: for an occupancy grid, a cell the grid knows to
+//! be free (unknown cells are not a place the robot is known to be able to
+//! stand, whatever `--unknown` made of them for the polygons); for a GeoJSON
+//! map, inside the building ([`super::free_space`]). *Stored* nodes are
 //! those within `reach_mm` (plus a node's diagonal, so that the four nodes
 //! around any transducer position are stored) of a free node.
 

@@ -1,7 +1,10 @@
 //! GeoJSON (RFC 7946 shapes, planar metres), read with the `geojson`
 //! crate: Polygon and MultiPolygon are solids (interior rings are holes),
 //! LineString and MultiLineString are walls; a GeometryCollection's members
-//! count one by one.
+//! count one by one. A Feature with the property `"kind": "free"` (a Polygon
+//! or MultiPolygon) is no obstacle but the map's free space
+//! ([`super::free_space`]); other `kind`s (`solid`, `wall`, as `map export`
+//! writes them) and other properties are read by their geometry.
 //!
 //! Errors say where: a JSON or GeoJSON syntax error its line and column (from
 //! the parser), a shape the path to it (`features[2].geometry.coordinates[0][3]`).
@@ -17,11 +20,26 @@
 
 use ::geojson::{GeoJson, Geometry, GeometryValue, PolygonType, Position};
 
+use super::free_space::Area;
 use super::Shape;
 use echoloc::geometry::{Point, COORD_MAX};
 
-/// Parses a FeatureCollection, a Feature or a bare geometry.
+/// A GeoJSON map: its obstacles and the `free` polygons it gives.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct GeoMap {
+    pub shapes: Vec<Shape>,
+    pub free: Vec<Area>,
+}
+
+/// Parses a FeatureCollection, a Feature or a bare geometry: the obstacles
+/// (`free` features left out).
 pub fn parse(text: &str) -> Result<Vec<Shape>, String> {
+    parse_map(text).map(|m| m.shapes)
+}
+
+/// Parses a FeatureCollection, a Feature or a bare geometry: the obstacles
+/// and the `free` polygons.
+pub fn parse_map(text: &str) -> Result<GeoMap, String> {
     // JSON first, for its own message (with line and column); then the
     // top level's type, the commonest mistake; then GeoJSON proper.
     let v: serde_json::Value = serde_json::from_str(text).map_err(|e| format!("not JSON: {e}"))?;
@@ -32,20 +50,47 @@ pub fn parse(text: &str) -> Result<Vec<Shape>, String> {
         ::geojson::Error::MalformedGeoJson(e) => format!("not GeoJSON (RFC 7946): {e}"),
         e => format!("not GeoJSON (RFC 7946): {e}"),
     })?;
-    let mut out = Vec::new();
+    let mut out = GeoMap::default();
     match &g {
         GeoJson::FeatureCollection(fc) => {
             for (i, f) in fc.features.iter().enumerate() {
                 let g = f.geometry.as_ref().ok_or_else(|| format!("features[{i}]: no geometry"))?;
-                geometry(g, &format!("features[{i}].geometry"), &mut out)?;
+                feature(f, g, &format!("features[{i}]"), &mut out)?;
             }
         }
-        GeoJson::Feature(f) => {
-            geometry(f.geometry.as_ref().ok_or("Feature without a geometry")?, "geometry", &mut out)?
-        }
-        GeoJson::Geometry(g) => geometry(g, "$", &mut out)?,
+        GeoJson::Feature(f) => feature(f, f.geometry.as_ref().ok_or("Feature without a geometry")?, "$", &mut out)?,
+        GeoJson::Geometry(g) => geometry(g, "$", &mut out.shapes)?,
     }
     Ok(out)
+}
+
+/// A Feature: an obstacle, or (`"kind": "free"`) free space.
+fn feature(f: &::geojson::Feature, g: &Geometry, at: &str, out: &mut GeoMap) -> Result<(), String> {
+    let at_g = if at == "$" { "geometry".to_string() } else { format!("{at}.geometry") };
+    if f.property("kind").and_then(serde_json::Value::as_str) != Some("free") {
+        return geometry(g, &at_g, &mut out.shapes);
+    }
+    let mut polys = Vec::new();
+    match &g.value {
+        GeometryValue::Polygon { coordinates } => polys.push(polygon(coordinates, &format!("{at_g}.coordinates"))?),
+        GeometryValue::MultiPolygon { coordinates } => {
+            for (i, p) in coordinates.iter().enumerate() {
+                polys.push(polygon(p, &format!("{at_g}.coordinates[{i}]"))?);
+            }
+        }
+        other => {
+            return Err(format!(
+                "{at}: a \"free\" feature must be a Polygon or MultiPolygon, not {:?}",
+                other.type_name()
+            ))
+        }
+    }
+    for p in polys {
+        if let Shape::Solid { outer, holes } = p {
+            out.free.push(Area { outer, holes });
+        }
+    }
+    Ok(())
 }
 
 fn geometry(g: &Geometry, at: &str, out: &mut Vec<Shape>) -> Result<(), String> {

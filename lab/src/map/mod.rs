@@ -11,6 +11,7 @@
 pub mod build;
 pub mod contour;
 pub mod field;
+pub mod free_space;
 pub mod geojson;
 pub mod lines;
 pub mod load;
@@ -255,17 +256,33 @@ impl Default for ImportOptions {
     }
 }
 
-/// Compiles the shapes of `src` with `opt`'s field (free space from the
-/// occupancy grid's known-free cells, when there is one).
+/// Compiles the shapes of `src` with `opt`'s field: free space from the
+/// occupancy grid's known-free cells, or a GeoJSON map's building
+/// ([`free_space`]: its `free` polygons, else what its walls enclose, said
+/// in the summary as `free_space`).
 pub fn compile_source(
     src: &Source,
     buffer_mm: u32,
     cell_mm: u32,
     opt: &ImportOptions,
 ) -> Result<(Vec<u8>, MapSummary), String> {
+    let field = opt.field.map(|f| FieldOptions { delta_max_deg: face_lobe(opt).unwrap_or(f.delta_max_deg), ..f });
+    if let Some(free) = &src.free_polygons {
+        // Found when the field first asks, after the map was built (and
+        // checked against the compiler's capacity).
+        let space = std::sync::OnceLock::new();
+        let of = || free_space::FreeSpace::of(&src.shapes, free);
+        let inside = |x: f64, y: f64| space.get_or_init(of).contains(x, y);
+        let known: &(dyn Fn(f64, f64) -> bool + Sync) = &inside;
+        let (blob, mut summary) =
+            build_map_with(&src.shapes, buffer_mm, cell_mm, field.as_ref().map(|f| (f, Some(known))))?;
+        if field.is_some() && !src.shapes.is_empty() {
+            summary.extra.insert("free_space".into(), space.get_or_init(of).summary());
+        }
+        return Ok((blob, summary));
+    }
     let known = src.grid.as_ref().map(|g| move |x: f64, y: f64| g.known_free_at(x, y));
     let known_ref = known.as_ref().map(|f| f as &(dyn Fn(f64, f64) -> bool + Sync));
-    let field = opt.field.map(|f| FieldOptions { delta_max_deg: face_lobe(opt).unwrap_or(f.delta_max_deg), ..f });
     build_map_with(&src.shapes, buffer_mm, cell_mm, field.as_ref().map(|f| (f, known_ref)))
 }
 
@@ -279,6 +296,9 @@ fn face_lobe(opt: &ImportOptions) -> Option<f32> {
 pub struct Source {
     pub shapes: Vec<Shape>,
     pub grid: Option<ros::Grid>,
+    /// A GeoJSON map's `free` polygons (empty: free space is what its walls
+    /// enclose, [`free_space`]); `None` for other sources.
+    pub free_polygons: Option<Vec<free_space::Area>>,
     pub extra: serde_json::Map<String, serde_json::Value>,
 }
 
@@ -359,6 +379,9 @@ pub fn run(cmd: MapCmd) -> Result<String, LabError> {
                     .map_err(|e| LabError(format!("--face-lobe-deg: {e}")))?;
             }
             let (blob, summary, src) = import(&input, buffer_mm, cell_mm, &opt)?;
+            if let Some(w) = summary.extra.get("free_space").and_then(|f| f.get("warning")).and_then(|w| w.as_str()) {
+                eprintln!("echoloc-lab: warning: {}: {w}", input.display());
+            }
             // Everything is computed before anything is written.
             let png = match &preview {
                 Some(p) => {
@@ -492,16 +515,16 @@ pub fn read_source(input: &Path, opt: &ImportOptions) -> Result<Source, ImportEr
         "geojson" | "json" => {
             let text =
                 std::fs::read_to_string(input).map_err(|e| ImportError::Io { path: input.to_path_buf(), source: e })?;
-            let shapes =
-                geojson::parse(&text).map_err(|e| ImportError::Content { path: input.to_path_buf(), problem: e })?;
+            let m = geojson::parse_map(&text)
+                .map_err(|e| ImportError::Content { path: input.to_path_buf(), problem: e })?;
             let mut extra = serde_json::Map::new();
             extra.insert("source".into(), "geojson".into());
-            Ok(Source { shapes, grid: None, extra })
+            Ok(Source { shapes: m.shapes, grid: None, free_polygons: Some(m.free), extra })
         }
         "yaml" | "yml" => {
             let grid = ros::load(input)?;
             let (shapes, extra) = grid_shapes(input, &grid, opt)?;
-            Ok(Source { shapes, grid: Some(grid), extra })
+            Ok(Source { shapes, grid: Some(grid), free_polygons: None, extra })
         }
         _ => Err(ImportError::Content {
             path: input.to_path_buf(),
