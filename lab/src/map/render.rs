@@ -49,12 +49,22 @@ pub fn geojson<M: MapSource + ?Sized>(m: &M) -> Value {
     json!({ "type": "FeatureCollection", "features": feats })
 }
 
+/// Every colour the map's layers draw with, by legend label (the figures
+/// that draw paths over them check theirs against these).
+pub const COLOURS: [(&str, [u8; 3]); 6] = [
+    ("convex pieces", PIECE_FILL),
+    ("seams", PIECE_EDGE),
+    ("true outline", OUTLINE),
+    ("C-space buffer", BUFFER),
+    ("occupied cells", OCCUPIED),
+    ("unknown cells", UNKNOWN),
+];
 const UNKNOWN: [u8; 3] = [205, 205, 205];
-const OCCUPIED: [u8; 3] = [40, 40, 40];
+const OCCUPIED: [u8; 3] = [70, 70, 70];
 const PIECE_FILL: [u8; 3] = [255, 120, 0];
-const PIECE_EDGE: [u8; 3] = [200, 60, 0];
+const PIECE_EDGE: [u8; 3] = [130, 0, 0];
 const OUTLINE: [u8; 3] = [0, 90, 220];
-const BUFFER: [u8; 3] = [0, 170, 80];
+const BUFFER: [u8; 3] = [150, 220, 60];
 
 /// A map chart: map coordinates in metres, x right, y up, equal scale.
 pub type MapChart<'a, DB> = ChartContext<'a, DB, Cartesian2d<RangedCoordf64, RangedCoordf64>>;

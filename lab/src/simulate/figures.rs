@@ -21,9 +21,9 @@ const CLUTTER: [u8; 3] = [230, 0, 160];
 /// kidnaps).
 const CLOUDS: [(&str, &str, [u8; 3]); 4] = [
     ("start", "particles at the start", [150, 150, 150]),
-    ("handoff", "particles at a hand-off", [240, 140, 0]),
-    ("wake", "particles at a wake-up", [30, 90, 230]),
-    ("asked", "particles after a kidnap", [0, 180, 200]),
+    ("handoff", "particles at a hand-off", [220, 200, 0]),
+    ("wake", "particles at a wake-up", [160, 110, 60]),
+    ("asked", "particles after a kidnap", [0, 190, 210]),
 ];
 
 const SERIES: [(&str, [u8; 3], Option<Methods>); 4] = [
@@ -54,14 +54,45 @@ pub fn draw_as<M: MapSource>(
     Ok((paths(map, unmapped, t, format)?, errors(t, format)?))
 }
 
-fn track(t: &Trace, m: Option<Methods>) -> Vec<(f64, f64)> {
-    let v: Vec<[f64; 3]> = match m {
-        None => t.truth.iter().flatten().copied().collect(),
-        Some(Methods::DeadReckoning) => t.dead_reckoning.clone(),
-        Some(Methods::Threshold) => t.threshold.clone(),
-        Some(Methods::Ekf) => t.ekf.clone(),
+/// A step longer than this, m, and faster than [`JUMP_M_S`] is a jump (a
+/// kidnap, a hand-off to another place), not travel: the path breaks there.
+const JUMP_M: f64 = 0.5;
+/// ... m/s (no robot of these drives so fast).
+const JUMP_M_S: f64 = 3.0;
+
+/// The path of `m` (the truth for `None`) in pieces, broken where it
+/// jumps or where the truth is not known.
+fn track(t: &Trace, m: Option<Methods>) -> Vec<Vec<(f64, f64)>> {
+    let at: Vec<Option<[f64; 3]>> = match m {
+        None => t.truth.clone(),
+        Some(Methods::DeadReckoning) => t.dead_reckoning.iter().copied().map(Some).collect(),
+        Some(Methods::Threshold) => t.threshold.iter().copied().map(Some).collect(),
+        Some(Methods::Ekf) => t.ekf.iter().copied().map(Some).collect(),
     };
-    v.iter().map(|p| (p[0], p[1])).collect()
+    let mut pieces: Vec<Vec<(f64, f64)>> = vec![Vec::new()];
+    let mut last: Option<(f64, f64, f64)> = None;
+    for (k, p) in at.iter().enumerate() {
+        let Some(p) = p else {
+            last = None;
+            if pieces.last().is_some_and(|v| !v.is_empty()) {
+                pieces.push(Vec::new());
+            }
+            continue;
+        };
+        let time = t.times.get(k).copied().unwrap_or(k as f64);
+        if let Some((x, y, t0)) = last {
+            let d = (p[0] - x).hypot(p[1] - y);
+            if d > JUMP_M && d > JUMP_M_S * (time - t0) {
+                pieces.push(Vec::new());
+            }
+        }
+        if let Some(v) = pieces.last_mut() {
+            v.push((p[0], p[1]));
+        }
+        last = Some((p[0], p[1], time));
+    }
+    pieces.retain(|v| !v.is_empty());
+    pieces
 }
 
 struct Paths<'a, M: MapSource> {
@@ -104,7 +135,9 @@ impl<M: MapSource> Figure for Paths<'_, M> {
         // One pixel wide: plotters joins wider polylines with mitres, which
         // spike far out where a jittery track turns back on itself.
         for (_, colour, m) in SERIES {
-            chart.draw_series(LineSeries::new(track(self.trace, m), rgb(colour).stroke_width(1))).map_err(err)?;
+            for piece in track(self.trace, m) {
+                chart.draw_series(LineSeries::new(piece, rgb(colour).stroke_width(1))).map_err(err)?;
+            }
         }
         let mut items: Vec<(&str, RGBColor)> = SERIES.iter().map(|&(l, c, _)| (l, rgb(c))).collect();
         items.push(("unmapped objects", rgb(CLUTTER)));
@@ -122,7 +155,7 @@ fn paths<M: MapSource>(map: &M, unmapped: &[Vec<(f64, f64)>], t: &Trace, format:
     let mut layers = MapLayers::new(map, None, Unknown::Free);
     // The paths may leave the map's bounds (a diverged filter): show them.
     for (_, _, m) in SERIES {
-        for (x, y) in track(t, m) {
+        for (x, y) in track(t, m).into_iter().flatten() {
             let e = &mut layers.extent;
             *e = [e[0].min(x - 0.5), e[1].max(x + 0.5), e[2].min(y - 0.5), e[3].max(y + 0.5)];
         }
@@ -184,4 +217,51 @@ impl Figure for Errors<'_> {
 
 fn errors(t: &Trace, format: Format) -> Result<Vec<u8>, String> {
     encode(&Errors(t), format)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn no_two_things_share_a_colour() {
+        let mut all: Vec<(&str, [u8; 3])> = SERIES.iter().map(|&(l, c, _)| (l, c)).collect();
+        all.push(("unmapped objects", CLUTTER));
+        all.extend(CLOUDS.iter().map(|&(_, l, c)| (l, c)));
+        all.extend(crate::map::render::COLOURS);
+        for (i, (a, ca)) in all.iter().enumerate() {
+            for (b, cb) in &all[i + 1..] {
+                let d = ca.iter().zip(cb).map(|(&x, &y)| (f64::from(x) - f64::from(y)).powi(2)).sum::<f64>().sqrt();
+                assert!(d >= 80.0, "{a} {ca:?} and {b} {cb:?} are {d:.0} apart in RGB");
+            }
+        }
+    }
+
+    #[test]
+    fn a_path_breaks_where_it_jumps_not_where_it_drives() {
+        // 0.04 s a reading: driving at 1 m/s, then a 6 m hand-off, then on;
+        // the truth unknown for two readings.
+        let mut t = Trace::default();
+        for k in 0..20 {
+            let x = 0.04 * f64::from(k) + if k >= 10 { 6.0 } else { 0.0 };
+            t.times.push(0.04 * f64::from(k));
+            t.ekf.push([x, 1.0, 0.0]);
+            t.truth.push((!(4..6).contains(&k)).then_some([0.04 * f64::from(k), 1.0, 0.0]));
+        }
+        let ekf = track(&t, Some(Methods::Ekf));
+        assert_eq!(ekf.iter().map(Vec::len).collect::<Vec<_>>(), [10, 10]);
+        assert_eq!(ekf[1][0], (6.4, 1.0));
+        let truth = track(&t, None);
+        assert_eq!(truth.iter().map(Vec::len).collect::<Vec<_>>(), [4, 14]);
+        // A slow big step (a robot parked for a minute, then 0.6 m on) is travel.
+        t.times[10] = 60.0;
+        for k in 11..20 {
+            t.times[k] = 60.0 + 0.04 * (k - 10) as f64;
+        }
+        t.ekf[10][0] = t.ekf[9][0] + 0.6;
+        for k in 11..20 {
+            t.ekf[k][0] = t.ekf[10][0] + 0.04 * (k - 10) as f64;
+        }
+        assert_eq!(track(&t, Some(Methods::Ekf)).len(), 1);
+    }
 }
