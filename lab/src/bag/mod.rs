@@ -31,6 +31,7 @@ pub mod msgs;
 mod ranges;
 pub mod source;
 mod sqlite;
+pub mod stored;
 pub mod write;
 
 use std::collections::BTreeMap;

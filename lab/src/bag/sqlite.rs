@@ -25,7 +25,7 @@ use std::path::Path;
 use rusqlite::types::ValueRef;
 use rusqlite::{Connection, ErrorCode, OpenFlags};
 
-use super::source::{Messages, Stored, Topic};
+use super::stored::{Messages, Stored, Topic};
 use super::BagError;
 
 /// The first 16 bytes of every SQLite 3 database file.

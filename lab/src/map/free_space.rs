@@ -156,25 +156,12 @@ pub struct Enclosure {
     inside: usize,
 }
 
-fn orient(a: (i64, i64), b: (i64, i64), c: (i64, i64)) -> i32 {
-    let v = i128::from(b.0 - a.0) * i128::from(c.1 - a.1) - i128::from(b.1 - a.1) * i128::from(c.0 - a.0);
-    v.signum() as i32
-}
-
-fn within(a: (i64, i64), b: (i64, i64), c: (i64, i64)) -> bool {
-    c.0 >= a.0.min(b.0) && c.0 <= a.0.max(b.0) && c.1 >= a.1.min(b.1) && c.1 <= a.1.max(b.1)
-}
-
-/// Whether the closed segments `ab` and `cd` share a point (either may be a point).
+/// Whether the closed segments `ab` and `cd` share a point (either may be
+/// a point): the core's exact predicate, on lattice points (mm, within the
+/// map's `i32` extent and its margin).
 fn touch(a: (i64, i64), b: (i64, i64), c: (i64, i64), d: (i64, i64)) -> bool {
-    let (o1, o2, o3, o4) = (orient(a, b, c), orient(a, b, d), orient(c, d, a), orient(c, d, b));
-    if o1 * o2 < 0 && o3 * o4 < 0 {
-        return true;
-    }
-    (o1 == 0 && within(a, b, c))
-        || (o2 == 0 && within(a, b, d))
-        || (o3 == 0 && within(c, d, a))
-        || (o4 == 0 && within(c, d, b))
+    let p = |q: (i64, i64)| Point::new(q.0 as i32, q.1 as i32);
+    echoloc::geometry::segments_intersect(p(a), p(b), p(c), p(d))
 }
 
 impl Enclosure {
