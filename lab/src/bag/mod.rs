@@ -623,7 +623,7 @@ pub fn read(path: &Path, o: &Options) -> Result<Bag, BagError> {
 }
 
 /// The bag's messages as a log, stage by stage: the range topics, their
-/// readings ([`ranges`]), the ring, the odometry and the reference, then
+/// readings (`bag::ranges`), the ring, the odometry and the reference, then
 /// each reading as a row at its time.
 pub fn from_messages(m: &Messages, o: &Options) -> Result<Bag, BagError> {
     let mut used = Used::default();
