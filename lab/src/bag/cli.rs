@@ -83,7 +83,7 @@ impl BagTopics {
         let pioneer = n == 16 && firing.order.is_none();
         let order = match &firing.order {
             Some(o) => o.clone(),
-            None if pioneer => (0..8).map(|j| vec![j, j + 8]).collect(),
+            None if pioneer => super::pioneer_order(),
             None => (0..n).map(|k| vec![k as u8]).collect(),
         };
         let period_s = match (self.ring_period_s, firing.period_s) {

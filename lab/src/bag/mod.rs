@@ -107,6 +107,12 @@ pub enum RingStamp {
 /// `SonarCycle` and polling sequence), so a ring cycle is 320 ms, ns.
 pub const PIONEER_RING_PERIOD_NS: i64 = 320_000_000;
 
+/// The Pioneer's firing order as ARCOS fires it by default: slot j fires
+/// transducer j of the front array and j + 8 of the rear.
+pub fn pioneer_order() -> Vec<Vec<u8>> {
+    (0..8).map(|j| vec![j, j + 8]).collect()
+}
+
 impl fmt::Display for CloudTiming {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
@@ -165,8 +171,7 @@ impl CloudTiming {
     /// RosAria's Pioneer ring of 16 (see [`PIONEER_RING_PERIOD_NS`]),
     /// stamped at its end.
     pub fn pioneer() -> Self {
-        let order: Vec<Vec<u8>> = (0..8).map(|j| vec![j, j + 8]).collect();
-        Self::rebuilt(&order, 16, PIONEER_RING_PERIOD_NS, None, RingStamp::End).unwrap_or(Self::AtStamp)
+        Self::rebuilt(&pioneer_order(), 16, PIONEER_RING_PERIOD_NS, None, RingStamp::End).unwrap_or(Self::AtStamp)
     }
 
     /// Point `k`'s firing time after the stamp (negative: before), ns.

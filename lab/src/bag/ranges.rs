@@ -100,31 +100,24 @@ pub(super) fn readings(
             let (stamp, readings) = match cloud_ring {
                 Some(ring) => {
                     let c: msgs::PointCloud = decoded(topic, index, types::POINT_CLOUD, s)?;
-                    let err = |problem| BagError::Message {
-                        topic: topic.to_string(),
-                        index,
-                        stamp_s: c.header.stamp.seconds(),
-                        problem,
-                    };
-                    (c.header.stamp, cloud_points(&c, ring, o, &mut out.no_echo).map_err(err)?)
+                    (c.header.stamp, cloud_points(&c, ring, o, &mut out.no_echo))
                 }
                 None => {
                     let r: msgs::Range = decoded(topic, index, types::RANGE, s)?;
-                    let err = |problem| BagError::Message {
-                        topic: topic.to_string(),
-                        index,
-                        stamp_s: r.header.stamp.seconds(),
-                        problem,
-                    };
-                    let frame = strip(&r.header.frame_id).to_string();
-                    if frame.is_empty() {
-                        return Err(err(MessageProblem::NoFrame));
-                    }
-                    let reading = range_reading(&r, &mut out.no_echo).map_err(err)?;
-                    out.frames_of.entry(frame.clone()).or_insert(ti);
-                    (r.header.stamp, vec![(Key::Frame(frame), reading, 0)])
+                    (r.header.stamp, range_frame(&r, &mut out.no_echo))
                 }
             };
+            let readings = readings.map_err(|problem| BagError::Message {
+                topic: topic.to_string(),
+                index,
+                stamp_s: stamp.seconds(),
+                problem,
+            })?;
+            for (k, ..) in &readings {
+                if let Key::Frame(f) = k {
+                    out.frames_of.entry(f.clone()).or_insert(ti);
+                }
+            }
             let t = stamp.seconds().map(|_| stamp.nanos()).ok_or(BagError::Message {
                 topic: topic.to_string(),
                 index,
@@ -193,6 +186,15 @@ fn cloud_points(
         rs.push((Key::Point(k), reading, o.cloud_timing.offset_ns(k)));
     }
     Ok(rs)
+}
+
+/// A Range's reading at its frame, the transducer's.
+fn range_frame(r: &msgs::Range, no_echo: &mut NoEcho) -> Result<Vec<(Key, Option<u32>, i64)>, MessageProblem> {
+    let frame = strip(&r.header.frame_id).to_string();
+    if frame.is_empty() {
+        return Err(MessageProblem::NoFrame);
+    }
+    Ok(vec![(Key::Frame(frame), range_reading(r, no_echo)?, 0)])
 }
 
 /// A Range's reading under REP 117: `+Inf` no return, `-Inf` too close,
