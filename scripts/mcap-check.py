@@ -3,12 +3,15 @@
 independently of echoloc, and checks it against the run's JSON report
 (`echoloc-lab simulate|replay --json --mcap OUT.mcap`):
 
-- every channel has a well-known Foxglove schema name, JSON Schema encoded,
-  JSON messages that parse, and log times that never decrease and equal the
-  messages' own timestamps;
+- every channel has a well-known Foxglove schema name, protobuf encoded
+  (decoded by PyPI's mcap-protobuf-support from the schema the file carries),
+  and log times that never decrease and equal the messages' own timestamps;
 - the message counts match the run: one pose, transform, sensor window and
   covariance ellipse per reading, truth poses per reading with a reference,
-  one map, a state log line at the start and at each change of the localizer's mode;
+  one map, a mode log line at the start and at each change of the localizer's mode;
+- with --trace TRACE.csv (the run's `--trace`): one `/particles` cloud per
+  cycle that ended searching or lost, no two within 0.25 s, each with as
+  many points as the cycle's `particles`, and `/hypotheses` only while searching;
 - the first and last EKF poses equal the JSON's `ekf.first_pose` and
   `ekf.final_pose` (6 decimals).
 
@@ -19,7 +22,10 @@ With --link, REPORT is what `echoloc-lab link --mcap` printed (one JSON line
 per controller message): the counts and the first and last poses are the
 controller's Reading messages'.
 
-Usage: python3 scripts/mcap-check.py RUN.mcap RUN.json [--picture OUT.png]
+--clouds OUT.png draws the particle cloud at the start, at convergence (the
+last cloud before the first hand-off) and after the next wake (a kidnap).
+
+Usage: python3 scripts/mcap-check.py RUN.mcap RUN.json [--trace TRACE.csv] [--picture OUT.png] [--clouds OUT.png]
        python3 scripts/mcap-check.py LINK.mcap LINK.jsonl --link
 """
 import argparse
@@ -29,13 +35,41 @@ import sys
 
 try:
     from mcap.reader import make_reader
+    from mcap_protobuf.decoder import DecoderFactory
 except ImportError as e:
-    sys.exit(f"mcap-check.py needs PyPI's mcap ({e}): pip install mcap")
+    sys.exit(f"mcap-check.py needs PyPI's mcap and mcap-protobuf-support ({e}): pip install mcap mcap-protobuf-support")
+
+CLOUD_INTERVAL_S = 0.25
 
 FOXGLOVE = {
     "foxglove.SceneUpdate", "foxglove.FrameTransforms", "foxglove.FrameTransform", "foxglove.PoseInFrame",
     "foxglove.PosesInFrame", "foxglove.Log", "foxglove.PointCloud", "foxglove.LaserScan", "foxglove.Grid",
 }
+
+
+def to_dict(msg):
+    """A decoded protobuf message as plain data, every field present (zeros
+    included); timestamps as {sec, nsec}; bytes as bytes."""
+    if msg.DESCRIPTOR.full_name == "google.protobuf.Timestamp":
+        return {"sec": msg.seconds, "nsec": msg.nanos}
+    out = {}
+    for f in msg.DESCRIPTOR.fields:
+        v = getattr(msg, f.name)
+        repeated = f.is_repeated if isinstance(getattr(f, "is_repeated", None), bool) else f.label == 3
+        if f.message_type is not None:
+            out[f.name] = [to_dict(x) for x in v] if repeated else to_dict(v)
+        else:
+            out[f.name] = list(v) if repeated else v
+    return out
+
+
+def pose2(p):
+    return (p["position"]["x"], p["position"]["y"], yaw(p["orientation"]))
+
+
+def compose(a, b):
+    c, s = math.cos(a[2]), math.sin(a[2])
+    return (a[0] + c * b[0] - s * b[1], a[1] + s * b[0] + c * b[1], a[2] + b[2])
 
 
 def yaw(q):
@@ -47,6 +81,9 @@ def main():
     ap.add_argument("mcap")
     ap.add_argument("report")
     ap.add_argument("--picture")
+    ap.add_argument("--clouds")
+    ap.add_argument("--points", help="writes every particle of every cloud as CSV: time_s,x_m,y_m,weight")
+    ap.add_argument("--trace", help="the run's --trace CSV: checks /particles and /hypotheses per cycle")
     ap.add_argument("--link", action="store_true", help="REPORT is the JSON lines `echoloc-lab link` printed")
     a = ap.parse_args()
     if a.link:
@@ -57,22 +94,21 @@ def main():
     channels, messages = {}, {}
     last_time = -1
     with open(a.mcap, "rb") as f:
-        reader = make_reader(f)
-        for schema, channel, message in reader.iter_messages(log_time_order=False):
+        reader = make_reader(f, decoder_factories=[DecoderFactory()])
+        for schema, channel, message, decoded in reader.iter_decoded_messages(log_time_order=False):
             topic = channel.topic
             if topic not in channels:
                 channels[topic] = {"schema": schema.name, "schema_encoding": schema.encoding,
                                    "message_encoding": channel.message_encoding, "count": 0}
                 if schema.name not in FOXGLOVE:
                     problems.append(f"{topic}: schema {schema.name!r} is not a well-known Foxglove schema")
-                if schema.encoding != "jsonschema" or channel.message_encoding != "json":
+                if schema.encoding != "protobuf" or channel.message_encoding != "protobuf":
                     problems.append(f"{topic}: encodings {schema.encoding}/{channel.message_encoding}")
-                json.loads(schema.data)
             channels[topic]["count"] += 1
             if message.log_time < last_time:
                 problems.append(f"{topic}: log time {message.log_time} before {last_time}")
             last_time = message.log_time
-            m = json.loads(message.data)
+            m = to_dict(decoded)
             stamps = []
             if "timestamp" in m:
                 stamps.append(m["timestamp"])
@@ -90,7 +126,8 @@ def main():
         readings = [r["Reading"] for r in report if isinstance(r, dict) and "Reading" in r]
         n = len(readings)
         changes = sum(1 for x, y in zip(readings, readings[1:]) if x["mode"] != y["mode"])
-        expect = {"/tf": n, "/pose/controller": n, "/ekf/covariance": n, "/sonar": n, "/state": (1 + changes) if n else 0}
+        expect = {"/tf": n, "/pose/controller": n, "/ekf/covariance": n, "/sonar": n,
+                  "/localization/mode": (1 + changes) if n else 0}
         pose_topic = "/pose/controller"
         want = {"first_pose": readings[0]["pose"], "final_pose": readings[-1]["pose"]} if n else {}
     else:
@@ -98,8 +135,10 @@ def main():
         with_truth = report.get("log", {}).get("reference_rows", n)
         expect = {
             "/map": 1, "/tf": n, "/pose/ekf": n, "/pose/dead_reckoning": n, "/pose/threshold": n,
-            "/ekf/covariance": n, "/sonar": n, "/state": 1 + report["localization"]["mode_changes"],
+            "/ekf/covariance": n, "/sonar": n, "/localization/mode": 1 + report["localization"]["mode_changes"],
         }
+        if a.trace:
+            problems += check_clouds(messages, a.trace, expect)
         if with_truth:
             expect["/pose/truth"] = with_truth
         pose_topic = "/pose/ekf"
@@ -124,8 +163,124 @@ def main():
     print(json.dumps({"channels": channels, "ekf": ends, "problems": problems}, indent=1))
     if a.picture:
         picture(messages, a.picture)
+    if a.clouds:
+        clouds_picture(messages, a.clouds)
+    if a.points:
+        with open(a.points, "w") as out:
+            out.write("time_s,x_m,y_m,weight\n")
+            for m in messages.get("/particles", []):
+                t = m["timestamp"]["sec"] + m["timestamp"]["nsec"] * 1e-9
+                for x, y, w in cloud_points(m):
+                    out.write(f"{t:.6f},{x:.6f},{y:.6f},{w:.9g}\n")
     if problems:
         sys.exit("mcap-check: " + "; ".join(problems))
+
+
+def check_clouds(messages, trace_path, expect):
+    """/particles against the trace's cycles: the cloud drawn at the start (a
+    search from no pose, before the first cycle's end), then the cycles that
+    ended searching or lost with particles, thinned to one per 0.25 s, each
+    cloud as big as the cycle's particles; /hypotheses only at searching
+    cycles' ends."""
+    import csv
+    problems = []
+    rows = list(csv.DictReader(open(trace_path)))
+    stamp = lambda m: m["timestamp"]["sec"] + m["timestamp"]["nsec"] * 1e-9
+    clouds = messages.get("/particles", [])
+    first_row = float(rows[0]["time_s"]) if rows else 0.0
+    start = [m for m in clouds[:1] if stamp(m) < first_row - 2e-6]
+    due, last = [], stamp(start[0]) if start else None
+    for r in rows:
+        t, n = float(r["time_s"]), int(r["particles"])
+        if r["mode"] != "tracking" and n > 0 and (last is None or t - last >= CLOUD_INTERVAL_S):
+            due.append((t, n))
+            last = t
+    expect["/particles"] = len(due) + len(start)
+    for (t, n), m in zip(due, clouds[len(start):]):
+        got_t = stamp(m)
+        points = len(m["data"]) // m["point_stride"] if m["point_stride"] else 0
+        if abs(got_t - t) > 2e-6 or points != n:
+            problems.append(f"/particles: a cloud of {points} at {got_t:.6f} s, the trace has {n} at {t:.6f} s")
+            break
+        names = [f["name"] for f in m["fields"]]
+        if names[:2] != ["x", "y"] or "weight" not in names or m["frame_id"] != "map":
+            problems.append(f"/particles: fields {names} in {m['frame_id']!r}")
+            break
+    searching = {round(float(r["time_s"]), 6) for r in rows if r["mode"] != "tracking"}
+    hyp = messages.get("/hypotheses", [])
+    if hyp:
+        expect["/hypotheses"] = len(hyp)
+    for m in hyp:
+        for e in m["entities"]:
+            t = round(e["timestamp"]["sec"] + e["timestamp"]["nsec"] * 1e-9, 6)
+            if t not in searching:
+                problems.append(f"/hypotheses: {e['id']} at {t} s, a cycle that did not end searching")
+                return problems
+    return problems
+
+
+def cloud_points(m):
+    import struct
+    names = {f["name"]: f["offset"] for f in m["fields"]}
+    stride, data = m["point_stride"], m["data"]
+    out = []
+    for k in range(0, len(data) - stride + 1, stride):
+        x, = struct.unpack_from("<f", data, k + names["x"])
+        y, = struct.unpack_from("<f", data, k + names["y"])
+        w, = struct.unpack_from("<f", data, k + names["weight"])
+        out.append((x, y, w))
+    return out
+
+
+def clouds_picture(messages, out):
+    """The particle cloud at the start, at convergence (the last cloud before
+    the first hand-off) and after the next wake, as the recording has them."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    clouds = messages.get("/particles", [])
+    if not clouds:
+        sys.exit("mcap-check: --clouds: the recording has no /particles")
+    t = lambda m: m["timestamp"]["sec"] + m["timestamp"]["nsec"] * 1e-9
+    modes = [(t(m), m["message"]) for m in messages.get("/localization/mode", [])]
+    handoffs = [tm for tm, msg in modes if msg.startswith("tracking")]
+    picks = [("start", clouds[0])]
+    if handoffs:
+        before = [c for c in clouds if t(c) <= handoffs[0]]
+        if before:
+            picks.append(("at convergence (before the hand-off)", before[-1]))
+        after = [c for c in clouds if t(c) > handoffs[0]]
+        if after:
+            picks.append(("after the kidnap (the particles woke)", after[0]))
+    truth = messages.get("/pose/truth", [])
+    fig, axes = plt.subplots(1, len(picks), figsize=(6 * len(picks), 5.2), dpi=100, squeeze=False)
+    for ax, (name, m) in zip(axes[0], picks):
+        for e in messages["/map"][0]["entities"]:
+            if e["id"] != "map/outlines":
+                continue
+            for line in e["lines"]:
+                xs = [p["x"] for p in line["points"]]
+                ys = [p["y"] for p in line["points"]]
+                for k in range(0, len(xs) - 1, 2):
+                    ax.plot(xs[k:k + 2], ys[k:k + 2], color=(0.0, 0.35, 0.86), lw=1)
+        pts = cloud_points(m)
+        w = [p[2] for p in pts]
+        sc = ax.scatter([p[0] for p in pts], [p[1] for p in pts], c=w, s=3, cmap="viridis")
+        tm = t(m)
+        near = [q for q in truth if abs(t(q) - tm) < 1.0]
+        if near:
+            q = min(near, key=lambda q: abs(t(q) - tm))["pose"]["position"]
+            ax.plot([q["x"]], [q["y"]], marker="x", color="red", ms=12, mew=3, label="truth")
+            ax.legend(loc="lower right")
+        ax.set_title(f"{name}: {tm:.1f} s, {len(pts)} particles", fontsize=10)
+        ax.set_aspect("equal")
+        ax.set_xlabel("x (m)")
+        fig.colorbar(sc, ax=ax, shrink=0.7, label="weight")
+    axes[0][0].set_ylabel("y (m)")
+    fig.suptitle("/particles of a Foxglove recording, read back by PyPI's mcap")
+    fig.tight_layout()
+    fig.savefig(out)
 
 
 def picture(messages, out):
@@ -158,19 +313,32 @@ def picture(messages, out):
                 color=colour, lw=1, label=name.replace("_", " "))
     cov = messages.get("/ekf/covariance", [])
     for m in cov[:: max(1, len(cov) // 25)]:
-        for line in m["entities"][0]["lines"]:
-            xs = [p["x"] for p in line["points"]]
-            ys = [p["y"] for p in line["points"]]
-            ax.plot(xs + xs[:1], ys + ys[:1], color="tab:green", lw=0.6)
+        for sphere in m["entities"][0]["spheres"]:
+            # A flat sphere: its size is the ellipse's axes, its yaw the major axis'.
+            x0, y0, th = pose2(sphere["pose"])
+            a, b = sphere["size"]["x"] / 2, sphere["size"]["y"] / 2
+            us = [2 * math.pi * k / 48 for k in range(49)]
+            ax.plot([x0 + a * math.cos(u) * math.cos(th) - b * math.sin(u) * math.sin(th) for u in us],
+                    [y0 + a * math.cos(u) * math.sin(th) + b * math.sin(u) * math.cos(th) for u in us],
+                    color="tab:green", lw=0.6)
+    # Each frame's pose at each time, from /tf: the sensor windows are drawn in the estimate's frame.
+    frames = {}
+    for m in messages.get("/tf", []):
+        for tr in m["transforms"]:
+            t = tr["timestamp"]["sec"] * 10**9 + tr["timestamp"]["nsec"]
+            q = tr["rotation"]
+            frames[(tr["child_frame_id"], t)] = (tr["translation"]["x"], tr["translation"]["y"], yaw(q))
     last = {}
     for m in messages.get("/sonar", []):
         e = m["entities"][0]
         last[e["id"]] = e
     for e in last.values():
-        meta = {kv["key"]: kv["value"] for kv in e["metadata"]}
+        t = e["timestamp"]["sec"] * 10**9 + e["timestamp"]["nsec"]
+        f = frames.get((e["frame_id"], t), (0.0, 0.0, 0.0)) if e["frame_id"] != "map" else (0.0, 0.0, 0.0)
         for k, line in enumerate(e["lines"]):
-            xs = [p["x"] for p in line["points"]]
-            ys = [p["y"] for p in line["points"]]
+            p = compose(f, pose2(line["pose"]))
+            pts = [compose(p, (q["x"], q["y"], 0.0)) for q in line["points"]]
+            xs, ys = [q[0] for q in pts], [q[1] for q in pts]
             if line["type"] == 1:
                 xs, ys = xs + xs[:1], ys + ys[:1]
             ax.plot(xs, ys, color=rgba(line["color"]), lw=line["thickness"] * 0.6,
@@ -178,7 +346,7 @@ def picture(messages, out):
     ax.set_aspect("equal")
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
-    ax.set_title("Foxglove recording, read back by PyPI's mcap: map, paths, 2σ ellipses, last sensor windows")
+    ax.set_title("Foxglove recording, read back by PyPI's mcap: map, paths, 2σ ellipses, last sensor windows", fontsize=10)
     from matplotlib.lines import Line2D
     handles, _ = ax.get_legend_handles_labels()
     # The verdict colours as the recording has them (read from its sensor windows).
@@ -188,7 +356,7 @@ def picture(messages, out):
         if meta["observed_mm"] != "no echo" and len(e["lines"]) > 1:
             seen.setdefault(meta["verdict"], rgba(e["lines"][-1]["color"]))
     handles += [Line2D([], [], color=c, lw=3, label=f"observed: {v}") for v, c in sorted(seen.items())]
-    handles.append(Line2D([], [], color=(0.2, 0.2, 0.9), lw=2, label="predicted range"))
+    handles.append(Line2D([], [], color=(0.2, 0.2, 0.9), lw=2, label="predicted range (chord)"))
     handles.append(Line2D([], [], color=(0.4, 0.4, 0.4), lw=1, label="sensor window"))
     ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.01, 1.0))
     fig.tight_layout()

@@ -21,8 +21,8 @@ if ! command -v qemu-system-arm >/dev/null 2>&1; then
   apt_get install -y -qq qemu-system-arm >/dev/null
 fi
 # The independent writer and reader of ROS 2 bags and MCAP recordings the lab's
-# tests run (scripts/fixture-bag.py, scripts/mcap-check.py): PyPI's rosbags
-# and mcap, installed when absent.
-if ! python3 -c "import rosbags, mcap" >/dev/null 2>&1; then
-  python3 -m pip install -q --disable-pip-version-check rosbags mcap
+# tests run (scripts/fixture-bag.py, scripts/mcap-check.py, scripts/live-viewer.py):
+# PyPI's rosbags, mcap with its protobuf decoder, and websockets, installed when absent.
+if ! python3 -c "import rosbags, mcap, mcap_protobuf, websockets" >/dev/null 2>&1; then
+  python3 -m pip install -q --disable-pip-version-check rosbags mcap mcap-protobuf-support websockets
 fi

@@ -48,7 +48,9 @@ pub struct LinkArgs {
     /// docs/foxglove.md): its poses, covariance, sensor windows and verdicts.
     #[arg(long)]
     mcap: Option<PathBuf>,
-    /// The controller's ring, for the sensor windows of --mcap: pioneer16 or a JSON ring file.
+    #[command(flatten)]
+    live: crate::foxglove::live::LiveArgs,
+    /// The controller's ring, for the sensor windows of --mcap and --live: pioneer16 or a JSON ring file.
     #[arg(long, default_value = "pioneer16")]
     ring: String,
     /// Give up after this many seconds.
@@ -225,17 +227,39 @@ pub fn link_cmd(a: &LinkArgs) -> Result<String, LabError> {
             lines
         })
     });
-    let mut readings = Vec::new();
-    let result = talk(&sock_path, &mut qemu, deadline, samples, a.corrupt_every, &mut readings);
+    let (hold, wait) = a.live.hold_and_wait().map_err(LabError)?;
+    // The recording is made as the messages come, and served from there.
+    let mut rec = match (&a.mcap, &a.live.live) {
+        (None, None) => None,
+        _ => Some(crate::foxglove::Recording::new().map_err(|e| LabError(format!("--mcap: {e}")))?),
+    };
+    if let Some(r) = rec.as_mut() {
+        a.live.serve(r, crate::foxglove::live::Pace::AsWritten).map_err(LabError)?;
+        crate::foxglove::controller::LinkRecorder::advertise(r);
+        if !wait.is_zero() && !r.wait_for_viewer(wait) {
+            eprintln!("live: no viewer within --live-wait-s; running without");
+        }
+    }
+    let mut recorder = crate::foxglove::controller::LinkRecorder::new(&mounts);
+    let mut on_message = |m: &FromController| {
+        if let Some(r) = rec.as_mut() {
+            recorder.push(r, m);
+        }
+    };
+    let result = talk(&sock_path, &mut qemu, deadline, samples, a.corrupt_every, &mut on_message);
     let firmware_exit = qemu.as_mut().map(|q| wait_or_kill(q, deadline));
     if a.qemu.is_some() {
         let _ = std::fs::remove_file(&sock_path);
     }
     let console = console.and_then(|h| h.join().ok()).unwrap_or_default();
     let (sent, received, dropped) = result?;
-    if let Some(p) = &a.mcap {
-        let rec = crate::foxglove::record_link(&readings, &mounts).map_err(|e| LabError(format!("--mcap: {e}")))?;
-        crate::map::write_atomically(p, &rec.finish().map_err(|e| LabError(format!("--mcap: {e}")))?)?;
+    if let Some(r) = rec {
+        let bytes = r
+            .finish_holding(hold)
+            .map_err(|e| LabError(format!("--mcap: {e}")))?;
+        if let Some(p) = &a.mcap {
+            crate::map::write_atomically(p, &bytes)?;
+        }
     }
     let summary = json!({"host": {
         "odometry_sent": sent.odometry, "corrupted": sent.corrupted, "garbage": sent.garbage,
@@ -267,7 +291,7 @@ fn talk(
     deadline: Instant,
     samples: Vec<Sample>,
     corrupt_every: Option<u32>,
-    readings: &mut Vec<echoloc::link::ReadingReport>,
+    on_message: &mut dyn FnMut(&FromController),
 ) -> Result<(Sent, u32, u32), LabError> {
     let stream = connect(sock, qemu, deadline)?;
     let writer = stream.try_clone().map_err(|e| LabError(format!("socket: {e}")))?;
@@ -296,9 +320,7 @@ fn talk(
         for &b in &buf[..n] {
             if let Some(Ok(m)) = rx.push::<FromController>(b) {
                 received += 1;
-                if let FromController::Reading(r) = &m {
-                    readings.push(*r);
-                }
+                on_message(&m);
                 let line = serde_json::to_string(&m).map_err(|e| LabError(e.to_string()))?;
                 let mut out = stdout.lock();
                 let _ = writeln!(out, "{line}");

@@ -39,6 +39,11 @@ pub struct ReplayArgs {
     /// Writes the run as a Foxglove recording (MCAP, docs/foxglove.md).
     #[arg(long)]
     pub mcap: Option<PathBuf>,
+    #[command(flatten)]
+    pub live: crate::foxglove::live::LiveArgs,
+    /// --live's pace: the run's seconds per wall-clock second.
+    #[arg(long, default_value_t = 1.0)]
+    pub speed: f64,
     /// Writes the map with the paths to OUT.png and the error over time to
     /// OUT-error.png (SVG for OUT.svg).
     #[arg(long)]
@@ -122,8 +127,13 @@ pub fn replay_cmd(a: &ReplayArgs) -> Result<String, LabError> {
     let loaded = a.input.load_map()?;
     let map = loaded.view()?;
     let steps = steps_of_log(&log);
+    let (hold, wait) = a.live.hold_and_wait().map_err(LabError)?;
+    if a.live.live.is_some() && !(a.speed.is_finite() && a.speed > 0.0) {
+        return Err(LabError(format!("--speed {} is not a positive number", a.speed)));
+    }
     let mut how = start(&log, given);
     how.seed = a.seed;
+    how.cycle_clouds = a.mcap.is_some() || a.live.live.is_some();
     crate::simulate::apply_start(&mut how, arg);
     let trace = filters::run(&map, map.field(), &mounts, &how, &steps, &mut |_| {})
         .map_err(|e| LabError(format!("{}: {e}", source.display())))?;
@@ -153,10 +163,20 @@ pub fn replay_cmd(a: &ReplayArgs) -> Result<String, LabError> {
     if let Some(p) = &a.readings_csv {
         outputs.push((p.clone(), trace.readings_csv(&steps).into_bytes()));
     }
-    if let Some(p) = &a.mcap {
-        let rec = crate::foxglove::record(&map, &mounts, &steps, &trace, &[])
-            .map_err(|e| LabError(format!("--mcap: {e}")))?;
-        outputs.push((p.clone(), rec.finish().map_err(|e| LabError(format!("--mcap: {e}")))?));
+    if a.mcap.is_some() || a.live.live.is_some() {
+        let mut rec = crate::foxglove::Recording::new().map_err(|e| LabError(format!("--mcap: {e}")))?;
+        a.live.serve(&mut rec, crate::foxglove::live::Pace::Speed(a.speed)).map_err(LabError)?;
+        if a.live.live.is_some() {
+            crate::foxglove::run::advertise(&mut rec);
+            if !wait.is_zero() && !rec.wait_for_viewer(wait) {
+                eprintln!("live: no viewer within --live-wait-s; running without");
+            }
+        }
+        crate::foxglove::run::record_into(&mut rec, &map, &mounts, &steps, &trace, &[]);
+        let bytes = rec.finish_holding(hold).map_err(|e| LabError(format!("--mcap: {e}")))?;
+        if let Some(p) = &a.mcap {
+            outputs.push((p.clone(), bytes));
+        }
     }
     write_all(&outputs)?;
     Ok(if a.json { r.to_string() } else { serde_json::to_string_pretty(&r).unwrap_or_default() })

@@ -1,7 +1,9 @@
-//! Foxglove recordings out (#28 item 2), read back by an independent reader:
-//! `scripts/mcap-check.py` opens the MCAP with PyPI's `mcap` and checks every
-//! channel's Foxglove schema, the message counts against the run's JSON, the
-//! timestamps, and the first and last EKF poses against the JSON's.
+//! Foxglove recordings out (#28 item 2, #37 items 1, 2 and 5), read back by
+//! an independent reader: `scripts/mcap-check.py` opens the MCAP with PyPI's
+//! `mcap`, decodes the protobuf messages with `mcap-protobuf-support` from
+//! the schemas the file carries, and checks every channel's Foxglove schema,
+//! the message counts against the run's JSON, the particle clouds against the
+//! run's trace, the timestamps, and the first and last EKF poses.
 
 mod common;
 
@@ -11,11 +13,22 @@ use std::process::Command;
 use common::{lab, root, run_json, s, shared_map, tmp};
 use serde_json::Value;
 
-/// Runs the reader on `mcap` against `report`; its summary, or its failure.
+/// Runs the reader on `mcap` against `report` (and the run's `--trace`);
+/// its summary, or its failure.
 fn check(mcap: &Path, report: &Value) -> Result<Value, String> {
+    check_with(mcap, report, &[])
+}
+
+fn check_with(mcap: &Path, report: &Value, args: &[&str]) -> Result<Value, String> {
     let json = mcap.with_extension("json");
     std::fs::write(&json, report.to_string()).unwrap();
-    let o = Command::new("python3").arg(root().join("scripts/mcap-check.py")).arg(mcap).arg(&json).output().unwrap();
+    let o = Command::new("python3")
+        .arg(root().join("scripts/mcap-check.py"))
+        .arg(mcap)
+        .arg(&json)
+        .args(args)
+        .output()
+        .unwrap();
     let err = String::from_utf8_lossy(&o.stderr).to_string();
     assert!(!err.contains("needs PyPI's mcap"), "{err} (`bash scripts/setup.sh` installs it)");
     if o.status.success() {
@@ -29,8 +42,22 @@ fn check(mcap: &Path, report: &Value) -> Result<Value, String> {
 fn a_simulated_run_reads_back_with_every_channel_and_count() {
     let out = tmp("fox", "sim.mcap");
     let map = shared_map("depot.yaml");
-    let v = run_json(&["simulate", "--json", "--map", s(&map), "--seed", "3", "--distance-m", "20", "--mcap", s(&out)]);
-    let sum = check(&out, &v).unwrap();
+    let trace = tmp("fox", "sim.csv");
+    let v = run_json(&[
+        "simulate",
+        "--json",
+        "--map",
+        s(&map),
+        "--seed",
+        "3",
+        "--distance-m",
+        "20",
+        "--mcap",
+        s(&out),
+        "--trace",
+        s(&trace),
+    ]);
+    let sum = check_with(&out, &v, &["--trace", s(&trace)]).unwrap();
     let ch = &sum["channels"];
     let n = v["readings"].as_u64().unwrap();
     assert!(n > 1000);
@@ -41,7 +68,7 @@ fn a_simulated_run_reads_back_with_every_channel_and_count() {
         ("/pose/truth", "foxglove.PoseInFrame"),
         ("/ekf/covariance", "foxglove.SceneUpdate"),
         ("/sonar", "foxglove.SceneUpdate"),
-        ("/state", "foxglove.Log"),
+        ("/localization/mode", "foxglove.Log"),
     ] {
         assert_eq!(ch[topic]["schema"], schema, "{topic}: {sum}");
     }
@@ -74,13 +101,88 @@ fn a_run_that_gets_lost_logs_each_change() {
         "0.8",
         "--mcap",
         s(&out),
+        "--trace",
+        s(&tmp("fox", "lost.csv")),
     ]);
     assert!(v["lost"]["raised"].as_u64().unwrap() >= 2, "{v}");
-    let sum = check(&out, &v).unwrap();
+    let sum = check_with(&out, &v, &["--trace", s(&tmp("fox", "lost.csv"))]).unwrap();
     // One log line at the start and one per change of the localizer's mode.
     let changes = 1 + v["localization"]["mode_changes"].as_u64().unwrap();
     assert!(changes >= 3, "{v}");
-    assert_eq!(sum["channels"]["/state"]["count"], changes);
+    assert_eq!(sum["channels"]["/localization/mode"]["count"], changes);
+    // The particles woke, so there are clouds, each checked against its cycle.
+    assert!(sum["channels"]["/particles"]["count"].as_u64().unwrap() > 0, "{sum}");
+}
+
+/// From no pose on the two-room GeoJSON map: a cloud per searching cycle
+/// (at most 4 a second), each as big as the trace's cycle says, the
+/// hypotheses while searching; and no particle drawn outside the building,
+/// counted from the recording against the building drawn by hand (#37
+/// item 5). A trace with one cycle's count changed is refused.
+#[test]
+fn a_search_records_its_particles_and_none_outside_the_building() {
+    let (out, trace, points) = (tmp("fox", "rooms.mcap"), tmp("fox", "rooms.csv"), tmp("fox", "rooms-points.csv"));
+    let map = root().join("lab/tests/data/two-rooms.geojson");
+    let v = run_json(&[
+        "simulate",
+        "--json",
+        "--map",
+        s(&map),
+        "--seed",
+        "2",
+        "--distance-m",
+        "30",
+        "--start",
+        "unknown",
+        "--mcap",
+        s(&out),
+        "--trace",
+        s(&trace),
+    ]);
+    let sum = check_with(&out, &v, &["--trace", s(&trace), "--points", s(&points)]).unwrap();
+    let clouds = sum["channels"]["/particles"]["count"].as_u64().unwrap();
+    let searching = v["localization"]["modes"]["searching"].as_u64().unwrap();
+    assert!(clouds >= 5 && clouds <= 1 + searching + v["localization"]["modes"]["lost"].as_u64().unwrap(), "{sum}");
+    assert!(sum["channels"]["/hypotheses"]["count"].as_u64().unwrap() > 0, "{sum}");
+    // Every particle of every cloud, as the reader decoded them: the cloud
+    // drawn at the start (the first) has none outside the building; later
+    // ones, moved by the odometry and its noise, can stray through a wall or
+    // into a box (the weighing does not forbid it), counted and shown.
+    let text = std::fs::read_to_string(&points).unwrap();
+    let mut per_cloud: Vec<(String, usize, usize)> = Vec::new();
+    for line in text.lines().skip(1) {
+        let f: Vec<&str> = line.split(',').collect();
+        let (x, y): (f64, f64) = (f[1].parse().unwrap(), f[2].parse().unwrap());
+        if per_cloud.last().is_none_or(|c| c.0 != f[0]) {
+            per_cloud.push((f[0].to_string(), 0, 0));
+        }
+        let c = per_cloud.last_mut().unwrap();
+        c.1 += 1;
+        c.2 += usize::from(!common::in_two_rooms(x, y));
+    }
+    assert_eq!(per_cloud.len() as u64, clouds);
+    let (n, outside) = per_cloud.iter().fold((0, 0), |a, c| (a.0 + c.1, a.1 + c.2));
+    eprintln!(
+        "two rooms from no pose: {clouds} clouds, {n} particles; drawn at the start {} with {} outside the building; \
+         later {} of {} outside",
+        per_cloud[0].1,
+        per_cloud[0].2,
+        outside - per_cloud[0].2,
+        n - per_cloud[0].1
+    );
+    assert_eq!(per_cloud[0].1, 1024, "the start cloud is the whole set");
+    assert_eq!(per_cloud[0].2, 0, "drawn outside the building");
+    // The reader checks each cloud's size against the trace: tamper with one.
+    let t = std::fs::read_to_string(&trace).unwrap();
+    let mut rows: Vec<String> = t.lines().map(String::from).collect();
+    let k = rows.iter().position(|r| r.contains(",searching,")).unwrap();
+    let mut cells: Vec<String> = rows[k].split(',').map(String::from).collect();
+    let last = cells.len() - 1;
+    cells[last] = (cells[last].parse::<u32>().unwrap() - 1).to_string();
+    rows[k] = cells.join(",");
+    let bad = tmp("fox", "rooms-bad.csv");
+    std::fs::write(&bad, rows.join("\n") + "\n").unwrap();
+    assert!(check_with(&out, &v, &["--trace", s(&bad)]).unwrap_err().contains("/particles: a cloud of"));
 }
 
 #[test]
@@ -92,6 +194,8 @@ fn a_replayed_log_reads_back_and_a_bad_path_writes_nothing() {
     let v = run_json(&["replay", "--json", "--map", s(&map), "--log", s(&log), "--mcap", s(&out), "--plot", s(&plot)]);
     let sum = check(&out, &v).unwrap();
     assert_eq!(sum["channels"]["/pose/truth"]["count"], v["log"]["reference_rows"]);
+    // From a known pose that holds: no search, so no clouds.
+    assert!(sum["channels"].get("/particles").is_none(), "{sum}");
     // The MCAP in a folder that does not exist: refused before anything is written.
     let (plot2, bad) = (tmp("fox", "hand2.png"), tmp("fox", "no/such/dir/x.mcap"));
     let o = lab()

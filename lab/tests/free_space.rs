@@ -13,27 +13,6 @@ use echoloc::map::MapView;
 use echoloc::referencing::{EkfConfig, VerdictConfig};
 use echoloc_lab::map::{build_map_with, import, read_source, AlignedBytes, FieldOptions, ImportOptions};
 
-/// The building of `two-rooms.geojson`, by hand: two 5 m × 5 m rooms, a
-/// corridor between them from y = 1.7 to 3.3 m, and the niche above the
-/// corridor (x 5.4–6.0, y 3.3–3.9). Open rectangles (x0, x1, y0, y1), m;
-/// a point on a wall is not inside.
-const BUILDING: [(f64, f64, f64, f64); 4] =
-    [(0.0, 5.0, 0.0, 5.0), (7.0, 12.0, 0.0, 5.0), (4.9, 7.1, 1.7, 3.3), (5.4, 6.0, 3.2, 3.9)];
-
-/// The four boxes standing in it.
-const BOXES: [(f64, f64, f64, f64); 4] =
-    [(1.0, 2.2, 3.2, 4.0), (9.8, 11.0, 1.0, 1.8), (3.0, 3.6, 0.8, 1.4), (8.4, 9.0, 3.6, 4.2)];
-
-fn within(r: &(f64, f64, f64, f64), x: f64, y: f64) -> bool {
-    x > r.0 && x < r.1 && y > r.2 && y < r.3
-}
-
-/// In the building and in no box (the rectangles overlap only where the
-/// corridor and the niche meet the rooms' open sides).
-fn in_building(x: f64, y: f64) -> bool {
-    BUILDING.iter().any(|r| within(r, x, y)) && !BOXES.iter().any(|r| within(r, x, y))
-}
-
 /// (free nodes, free nodes outside the building, particles outside the
 /// building over `seeds`) of a compiled map.
 fn count(blob: &[u8], seeds: std::ops::RangeInclusive<u64>) -> (u32, u32, usize) {
@@ -44,7 +23,7 @@ fn count(blob: &[u8], seeds: std::ops::RangeInclusive<u64>) -> (u32, u32, usize)
     for n in 0..field.nodes() {
         if field.is_free(n) {
             let (x, y) = field.position_mm(n).unwrap();
-            if !in_building(f64::from(x) / 1e3, f64::from(y) / 1e3) {
+            if !common::in_two_rooms(f64::from(x) / 1e3, f64::from(y) / 1e3) {
                 outside_nodes += 1;
             }
         }
@@ -56,7 +35,7 @@ fn count(blob: &[u8], seeds: std::ops::RangeInclusive<u64>) -> (u32, u32, usize)
         loc.start(Start::Unknown, field).unwrap();
         let poses = loc.particles().poses();
         assert_eq!(poses.len(), 1024);
-        outside_particles += poses.iter().filter(|p| !in_building(f64::from(p[0]), f64::from(p[1]))).count();
+        outside_particles += poses.iter().filter(|p| !common::in_two_rooms(f64::from(p[0]), f64::from(p[1]))).count();
     }
     (field.free_nodes(), outside_nodes, outside_particles)
 }

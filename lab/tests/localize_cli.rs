@@ -55,7 +55,7 @@ fn a_run_from_no_pose_with_a_kidnap_finds_itself_and_the_trace_agrees() {
     let (header, rows) = rows(&trace);
     assert_eq!(
         header,
-        "time_s,mode,x_m,y_m,theta_rad,sigma_x_m,sigma_y_m,sigma_theta_rad,ref_x_m,ref_y_m,ref_theta_rad"
+        "time_s,mode,x_m,y_m,theta_rad,sigma_x_m,sigma_y_m,sigma_theta_rad,ref_x_m,ref_y_m,ref_theta_rad,particles"
     );
     assert_eq!(rows.len() as u64, l["cycles"].as_u64().unwrap());
     // The modes, counted from the trace.

@@ -912,6 +912,18 @@ impl<const N: usize> Localizer<N> {
         &self.particles
     }
 
+    /// The places the search weighs now (while searching; at the last
+    /// cycle's end, in that cycle's frame): the heaviest cluster, and the
+    /// strongest pose found away from it with the cluster's lead over it
+    /// summed over every cycle since it was found (nats). For a viewer
+    /// (`echoloc-lab`'s `/hypotheses`); the search itself reads the fields.
+    pub fn hypotheses(&self) -> (Option<&Cluster>, Option<([f32; 3], f32)>) {
+        match self.mode {
+            Mode::Searching => (self.cluster.as_ref(), self.rival),
+            _ => (None, None),
+        }
+    }
+
     /// The settings.
     pub fn config(&self) -> &LocalizerConfig {
         &self.cfg

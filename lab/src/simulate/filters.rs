@@ -115,6 +115,8 @@ pub struct Trace {
     /// The particle cloud at the moments that matter (the start, before each
     /// hand-off, at each wake-up and at the times asked for).
     pub clouds: Vec<Cloud>,
+    /// The cloud at every cycle's end that held particles, when asked.
+    pub cycle_clouds: Vec<CycleCloud>,
     /// The localizer's counts.
     pub localizer: localize::LocalizerCounts,
     /// Per reading: the localizer's mode after it.
@@ -140,8 +142,21 @@ pub struct CycleRow {
     pub handoff: bool,
     /// The particles woke at this cycle's end.
     pub woke: bool,
+    /// The search ended because the EKF beside it was no longer lost.
+    pub calmed: bool,
     /// Particles weighed (while searching).
     pub particles: u16,
+    /// Particles held after the cycle (what a cloud of it shows).
+    pub held: u16,
+    /// How far the heaviest cluster led the best place found elsewhere on
+    /// the last cycles' readings, nats (while searching).
+    pub lead: f32,
+    /// While searching, the heaviest cluster after the cycle: its mean, its
+    /// position covariance (σ²x, σxy, σ²y) and its weight ...
+    pub cluster: Option<([f32; 3], [f32; 3], f32)>,
+    /// ... and the strongest place found away from it with the cluster's
+    /// lead over it (nats).
+    pub rival: Option<([f32; 3], f32)>,
     /// The heaviest cluster's weight (while searching).
     pub cluster_weight: f32,
     /// Distance driven since the start, m (along the truth where known,
@@ -158,6 +173,18 @@ pub struct Cloud {
     pub why: &'static str,
     /// The particles (x m, y m, φ rad).
     pub particles: Vec<[f32; 3]>,
+}
+
+/// The particles at a cycle's end, with their weights (kept when
+/// [`Start::cycle_clouds`] asks, for the recordings' `/particles`).
+#[derive(Clone, Debug)]
+pub struct CycleCloud {
+    /// The row of [`Trace::cycles`] it ends.
+    pub cycle: usize,
+    /// The particles (x m, y m, φ rad) ...
+    pub poses: Vec<[f32; 3]>,
+    /// ... and their weights as the set holds them (summing to 1).
+    pub weights: Vec<f32>,
 }
 
 impl Trace {
@@ -300,6 +327,9 @@ pub struct Start {
     pub seed: u64,
     /// Times (s) at which to keep the particle cloud.
     pub snapshots: Vec<f64>,
+    /// Whether to keep the cloud at every cycle's end that holds particles
+    /// ([`Trace::cycle_clouds`]; 16 B a particle a cycle: for recordings).
+    pub cycle_clouds: bool,
     /// Whether a lost EKF may recover (`echoloc::referencing::recovery`);
     /// off only to measure what recovery does.
     pub recovery: bool,
@@ -325,6 +355,7 @@ impl Start {
             particles: true,
             seed: 1,
             snapshots: Vec::new(),
+            cycle_clouds: false,
             recovery: true,
             robust: true,
             calibration: true,
@@ -457,6 +488,7 @@ fn run_with<M: MapSource, const N: usize>(
         });
     }
     let mut last: Option<(f64, Option<[f64; 3]>)> = None;
+    let cycle_clouds = start.cycle_clouds;
     let mut close = |loc: &mut Localizer<N>, t: &mut Trace, last: Option<(f64, Option<[f64; 3]>)>, travelled: f64| {
         let before = loc.particles().poses().to_vec();
         let rep = loc.end_cycle(field).map_err(|e| format!("{e}"))?;
@@ -472,6 +504,20 @@ fn run_with<M: MapSource, const N: usize>(
                 t.clouds.push(Cloud { time_s, why: "asked", particles: loc.particles().poses().to_vec() });
             }
         }
+        let (cluster, rival) = loc.hypotheses();
+        let cluster = cluster.map(|c| {
+            let p = c.covariance;
+            (c.mean, [p[0][0], p[0][1], p[1][1]], c.weight)
+        });
+        // The cloud the search goes on with (none while tracking).
+        let held = if rep.mode == Mode::Tracking { 0 } else { loc.particles().len() };
+        if cycle_clouds && held > 0 {
+            t.cycle_clouds.push(CycleCloud {
+                cycle: t.cycles.len(),
+                poses: loc.particles().poses().to_vec(),
+                weights: loc.particles().weights().to_vec(),
+            });
+        }
         t.cycles.push(CycleRow {
             time_s,
             mode: rep.mode,
@@ -480,7 +526,12 @@ fn run_with<M: MapSource, const N: usize>(
             truth,
             handoff: rep.handoff,
             woke: rep.woke,
+            calmed: rep.calmed,
             particles: rep.particles,
+            held: held as u16,
+            lead: rep.lead,
+            cluster,
+            rival,
             cluster_weight: rep.cluster_weight,
             distance_m: travelled,
         });

@@ -117,7 +117,7 @@ pub fn report(t: &Trace, kidnaps: &[f64]) -> Value {
 /// and its σ, and the reference where known.
 pub fn trace_csv(t: &Trace) -> String {
     let mut out = String::from(
-        "time_s,mode,x_m,y_m,theta_rad,sigma_x_m,sigma_y_m,sigma_theta_rad,ref_x_m,ref_y_m,ref_theta_rad\n",
+        "time_s,mode,x_m,y_m,theta_rad,sigma_x_m,sigma_y_m,sigma_theta_rad,ref_x_m,ref_y_m,ref_theta_rad,particles\n",
     );
     for r in &t.cycles {
         let p = r.covariance;
@@ -127,7 +127,7 @@ pub fn trace_csv(t: &Trace) -> String {
             None => (String::new(), String::new(), String::new()),
         };
         out.push_str(&format!(
-            "{:.6},{},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{rx},{ry},{rt}\n",
+            "{:.6},{},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{rx},{ry},{rt},{}\n",
             r.time_s,
             r.mode.name(),
             r.state[0],
@@ -136,6 +136,7 @@ pub fn trace_csv(t: &Trace) -> String {
             sd(0),
             sd(1),
             sd(2),
+            r.held,
         ));
     }
     out

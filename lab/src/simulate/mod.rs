@@ -203,6 +203,7 @@ pub fn simulate_cmd(a: &SimulateArgs) -> Result<String, LabError> {
         particles: !a.no_particles,
         seed: a.seed,
         snapshots: run.kidnaps.iter().map(|k| k.0).collect(),
+        cycle_clouds: a.mcap.is_some(),
         ..start_of(&header)
     };
     apply_start(&mut start, start_arg);

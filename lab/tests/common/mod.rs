@@ -83,3 +83,24 @@ pub fn board_binary(bin: &str) -> PathBuf {
     let dir = std::env::var("CARGO_TARGET_DIR").map_or_else(|_| root().join("target"), PathBuf::from);
     dir.join("thumbv7em-none-eabihf/release").join(bin)
 }
+
+/// The building of `two-rooms.geojson`, by hand: two 5 m × 5 m rooms, a
+/// corridor between them from y = 1.7 to 3.3 m, and the niche above the
+/// corridor (x 5.4–6.0, y 3.3–3.9). Open rectangles (x0, x1, y0, y1), m;
+/// a point on a wall is not inside.
+const BUILDING: [(f64, f64, f64, f64); 4] =
+    [(0.0, 5.0, 0.0, 5.0), (7.0, 12.0, 0.0, 5.0), (4.9, 7.1, 1.7, 3.3), (5.4, 6.0, 3.2, 3.9)];
+
+/// The four boxes standing in it.
+const BOXES: [(f64, f64, f64, f64); 4] =
+    [(1.0, 2.2, 3.2, 4.0), (9.8, 11.0, 1.0, 1.8), (3.0, 3.6, 0.8, 1.4), (8.4, 9.0, 3.6, 4.2)];
+
+fn within(r: &(f64, f64, f64, f64), x: f64, y: f64) -> bool {
+    x > r.0 && x < r.1 && y > r.2 && y < r.3
+}
+
+/// In the building of `data/two-rooms.geojson` and in no box (the rectangles overlap only where the
+/// corridor and the niche meet the rooms' open sides).
+pub fn in_two_rooms(x: f64, y: f64) -> bool {
+    BUILDING.iter().any(|r| within(r, x, y)) && !BOXES.iter().any(|r| within(r, x, y))
+}
