@@ -195,3 +195,95 @@ fn link_mcap_reads_back_with_the_controllers_poses() {
     assert_eq!(sum["channels"]["/sonar"]["count"], readings);
     assert_eq!(sum["channels"]["/pose/controller"]["schema"], "foxglove.PoseInFrame");
 }
+
+/// `link --live` (#37 item 3): the QEMU board's messages served over
+/// Foxglove's WebSocket protocol while it runs, watched by an independent
+/// viewer (`scripts/live-viewer.py`, PyPI's `websockets` and `protobuf`) that
+/// subscribes to `/pose/controller`, `/sonar` and `/localization/mode`
+/// before the run (`--live-wait-s`): it sees as many messages as the MCAP
+/// written in the same run holds, and the same first and last poses. A
+/// viewer that leaves after 100 messages and one that connects late change
+/// nothing in the recording: it still holds one message per reading the link
+/// printed (`mcap-check.py --link`).
+#[test]
+fn link_live_viewers_see_what_the_recording_holds() {
+    use std::io::BufRead;
+    use std::process::{Command, Stdio};
+    let elf = build_firmware();
+    let scn = root().join("boards/qemu-mps2-an386/depot.scn");
+    let dir = std::env::temp_dir().join(format!("echoloc-link-live-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let (mcap, lines) = (dir.join("live.mcap"), dir.join("live.jsonl"));
+    let mut link = lab()
+        .args(["link", "--timeout-s", "300", "--live", "127.0.0.1:0", "--live-wait-s", "60", "--live-hold-s", "20"])
+        .arg("--qemu")
+        .arg(&elf)
+        .arg("--scenario")
+        .arg(&scn)
+        .arg("--mcap")
+        .arg(&mcap)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    // The address it bound, from its first stderr line; the rest kept for failures.
+    let mut err = std::io::BufReader::new(link.stderr.take().unwrap());
+    let mut first = String::new();
+    err.read_line(&mut first).unwrap();
+    let url = first.trim().strip_prefix("live: ").unwrap_or_else(|| panic!("no address: {first:?}")).to_string();
+    let rest = std::thread::spawn(move || {
+        let mut s = String::new();
+        let _ = std::io::Read::read_to_string(&mut err, &mut s);
+        s
+    });
+    let viewer = |extra: &[&str]| {
+        Command::new("python3")
+            .arg(root().join("scripts/live-viewer.py"))
+            .arg(&url)
+            .args(["--topics", "/pose/controller", "/sonar", "/localization/mode", "--idle-s", "3"])
+            .args(extra)
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap()
+    };
+    let whole = viewer(&[]);
+    let leaving = viewer(&["--leave-after", "100"]);
+    let late = viewer(&["--late", "1.5"]);
+    let o = link.wait_with_output().unwrap();
+    let stderr = rest.join().unwrap();
+    assert!(o.status.success(), "link failed: {stderr}");
+    std::fs::write(&lines, &o.stdout).unwrap();
+    let summary = |c: std::process::Child| {
+        let o = c.wait_with_output().unwrap();
+        assert!(o.status.success(), "live-viewer: {}", String::from_utf8_lossy(&o.stderr));
+        serde_json::from_slice::<serde_json::Value>(&o.stdout).unwrap()
+    };
+    let (whole, leaving, late) = (summary(whole), summary(leaving), summary(late));
+    // The recording, checked by the independent reader against the link's lines.
+    let c = Command::new("python3")
+        .arg(root().join("scripts/mcap-check.py"))
+        .arg(&mcap)
+        .arg(&lines)
+        .arg("--link")
+        .output()
+        .unwrap();
+    assert!(c.status.success(), "mcap-check: {}", String::from_utf8_lossy(&c.stderr));
+    let rec: serde_json::Value = serde_json::from_slice(&c.stdout).unwrap();
+    let readings = String::from_utf8(o.stdout).unwrap().lines().filter(|l| l.starts_with("{\"Reading\"")).count();
+    assert!(readings > 1000);
+    eprintln!(
+        "live: whole {} messages, leaving {} (left early {}), late {}; recording {readings} readings",
+        whole["messages"], leaving["messages"], leaving["left_early"], late["messages"]
+    );
+    assert_eq!(whole["subprotocol"], "foxglove.sdk.v1");
+    for topic in ["/pose/controller", "/sonar", "/localization/mode"] {
+        assert_eq!(whole["topics"][topic]["count"], rec["channels"][topic]["count"], "{topic}: {whole}");
+    }
+    assert_eq!(rec["channels"]["/sonar"]["count"], readings);
+    let poses = &whole["topics"]["/pose/controller"];
+    assert_eq!(poses["first_pose"], rec["ekf"]["first_pose"], "{whole}");
+    assert_eq!(poses["last_pose"], rec["ekf"]["final_pose"], "{whole}");
+    assert_eq!(leaving["left_early"], true);
+    assert_eq!(leaving["messages"], 100);
+}
