@@ -23,7 +23,7 @@ per controller message): the counts and the first and last poses are the
 controller's Reading messages'.
 
 --clouds OUT.png draws the particle cloud at the start, at convergence (the
-last cloud before the first hand-off) and after the next wake (a kidnap).
+last cloud before the first hand-off) and after the first kidnap.
 
 Usage: python3 scripts/mcap-check.py RUN.mcap RUN.json [--trace TRACE.csv] [--picture OUT.png] [--clouds OUT.png]
        python3 scripts/mcap-check.py LINK.mcap LINK.jsonl --link
@@ -164,7 +164,8 @@ def main():
     if a.picture:
         picture(messages, a.picture)
     if a.clouds:
-        clouds_picture(messages, a.clouds)
+        kidnaps = [] if a.link else [k["time_s"] for k in report.get("localization", {}).get("kidnaps", [])]
+        clouds_picture(messages, a.clouds, kidnaps)
     if a.points:
         with open(a.points, "w") as out:
             out.write("time_s,x_m,y_m,weight\n")
@@ -232,9 +233,10 @@ def cloud_points(m):
     return out
 
 
-def clouds_picture(messages, out):
+def clouds_picture(messages, out, kidnaps):
     """The particle cloud at the start, at convergence (the last cloud before
-    the first hand-off) and after the next wake, as the recording has them."""
+    the first hand-off) and after the first kidnap (the run's JSON says
+    when), as the recording has them."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -250,9 +252,10 @@ def clouds_picture(messages, out):
         before = [c for c in clouds if t(c) <= handoffs[0]]
         if before:
             picks.append(("at convergence (before the hand-off)", before[-1]))
-        after = [c for c in clouds if t(c) > handoffs[0]]
+    if kidnaps:
+        after = [c for c in clouds if t(c) > kidnaps[0]]
         if after:
-            picks.append(("after the kidnap (the particles woke)", after[0]))
+            picks.append((f"after the kidnap at {kidnaps[0]:.0f} s (the particles woke)", after[0]))
     truth = messages.get("/pose/truth", [])
     fig, axes = plt.subplots(1, len(picks), figsize=(6 * len(picks), 5.2), dpi=100, squeeze=False)
     for ax, (name, m) in zip(axes[0], picks):
@@ -266,12 +269,12 @@ def clouds_picture(messages, out):
                     ax.plot(xs[k:k + 2], ys[k:k + 2], color=(0.0, 0.35, 0.86), lw=1)
         pts = cloud_points(m)
         w = [p[2] for p in pts]
-        sc = ax.scatter([p[0] for p in pts], [p[1] for p in pts], c=w, s=3, cmap="viridis")
+        sc = ax.scatter([p[0] for p in pts], [p[1] for p in pts], c=w, s=3, cmap="viridis", zorder=3)
         tm = t(m)
         near = [q for q in truth if abs(t(q) - tm) < 1.0]
         if near:
             q = min(near, key=lambda q: abs(t(q) - tm))["pose"]["position"]
-            ax.plot([q["x"]], [q["y"]], marker="x", color="red", ms=12, mew=3, label="truth")
+            ax.plot([q["x"]], [q["y"]], marker="o", mfc="none", color="red", ms=16, mew=1.5, label="truth", zorder=2)
             ax.legend(loc="lower right")
         ax.set_title(f"{name}: {tm:.1f} s, {len(pts)} particles", fontsize=10)
         ax.set_aspect("equal")

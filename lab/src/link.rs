@@ -254,9 +254,7 @@ pub fn link_cmd(a: &LinkArgs) -> Result<String, LabError> {
     let console = console.and_then(|h| h.join().ok()).unwrap_or_default();
     let (sent, received, dropped) = result?;
     if let Some(r) = rec {
-        let bytes = r
-            .finish_holding(hold)
-            .map_err(|e| LabError(format!("--mcap: {e}")))?;
+        let bytes = r.finish_holding(hold).map_err(|e| LabError(format!("--mcap: {e}")))?;
         if let Some(p) = &a.mcap {
             crate::map::write_atomically(p, &bytes)?;
         }

@@ -5,7 +5,7 @@
 //! Stamped with the controller's clock (µs, unwrapped at 2³²). No map: the
 //! controller holds it. No particles or hypotheses: the link carries each
 //! cycle's particle count, not the cloud (1 024 particles are 12 KiB a
-//! cycle, more than the link's frames hold).
+//! cycle, more than the link carries in a second).
 
 use echoloc::link::{CycleReport, FromController, ReadingReport, WireMode, WireOutcome};
 use echoloc::predict::Mount;

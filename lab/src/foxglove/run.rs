@@ -264,7 +264,10 @@ impl ModeLog {
         let reason = match (self.last, before) {
             (None, _) => "at the start".to_string(),
             (_, Some(r)) if r.handoff => {
-                format!("the particles handed off to the EKF (cluster weight {:.2}, lead {:.1} nats)", r.cluster_weight, r.lead)
+                format!(
+                    "the particles handed off to the EKF (cluster weight {:.2}, lead {:.1} nats)",
+                    r.cluster_weight, r.lead
+                )
             }
             (_, Some(r)) if r.woke => "the EKF was lost: the particles woke".to_string(),
             (_, Some(r)) if r.calmed => "the EKF beside the search was no longer lost".to_string(),
@@ -352,11 +355,8 @@ pub fn reading_messages(rec: &mut Recording, frame: &str, at: &At, s: &Sonar<'_>
         rec.write("/ekf/covariance", t, &scene::scene(vec![e]));
     }
     let Some(m) = s.mount else { return };
-    let mount = [
-        f64::from(m.x_mm) / 1000.0,
-        f64::from(m.y_mm) / 1000.0,
-        f64::from(m.heading_mdeg).to_radians() / 1000.0,
-    ];
+    let mount =
+        [f64::from(m.x_mm) / 1000.0, f64::from(m.y_mm) / 1000.0, f64::from(m.heading_mdeg).to_radians() / 1000.0];
     let mut cone = arc(0.0, 0.0, 0.0, half, r_max);
     cone.extend(arc(0.0, 0.0, 0.0, half, r_min).into_iter().rev());
     let chord = |r: f64| [(r, -r * half.tan()), (r, r * half.tan())];

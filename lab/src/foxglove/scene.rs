@@ -96,7 +96,10 @@ pub fn scene(entities: Vec<SceneEntity>) -> SceneUpdate {
 /// A scene update removing every entity of the channel at `t`, then adding `entities`.
 pub fn scene_replacing_all(t: u64, entities: Vec<SceneEntity>) -> SceneUpdate {
     // SceneEntityDeletion.type: 0 matching id, 1 all.
-    SceneUpdate { deletions: vec![SceneEntityDeletion { timestamp: Some(stamp(t)), r#type: 1, id: String::new() }], entities }
+    SceneUpdate {
+        deletions: vec![SceneEntityDeletion { timestamp: Some(stamp(t)), r#type: 1, id: String::new() }],
+        entities,
+    }
 }
 
 /// An arc at range `r` (m) about `(x, y)` from heading `a - h` to `a + h` (rad).

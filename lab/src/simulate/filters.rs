@@ -509,8 +509,9 @@ fn run_with<M: MapSource, const N: usize>(
             let p = c.covariance;
             (c.mean, [p[0][0], p[0][1], p[1][1]], c.weight)
         });
-        // The cloud the search goes on with (none while tracking).
-        let held = if rep.mode == Mode::Tracking { 0 } else { loc.particles().len() };
+        // The cloud the search goes on with (none while tracking, nor once
+        // the search has handed off).
+        let held = if rep.mode == Mode::Tracking || rep.handoff { 0 } else { loc.particles().len() };
         if cycle_clouds && held > 0 {
             t.cycle_clouds.push(CycleCloud {
                 cycle: t.cycles.len(),
