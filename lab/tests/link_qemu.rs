@@ -159,6 +159,24 @@ fn a_bad_stdin_line_is_named() {
     }
 }
 
+/// `scripts/mcap-check.py --link` on a recording against what `link` printed
+/// (kept in `lines`): its summary, and the Reading lines printed (over 1 000).
+fn check_link_recording(mcap: &std::path::Path, lines: &std::path::Path, printed: &[u8]) -> (serde_json::Value, usize) {
+    std::fs::write(lines, printed).unwrap();
+    let c = std::process::Command::new("python3")
+        .arg(root().join("scripts/mcap-check.py"))
+        .arg(mcap)
+        .arg(lines)
+        .arg("--link")
+        .output()
+        .unwrap();
+    assert!(c.status.success(), "mcap-check: {}", String::from_utf8_lossy(&c.stderr));
+    let sum: serde_json::Value = serde_json::from_slice(&c.stdout).unwrap();
+    let readings = String::from_utf8_lossy(printed).lines().filter(|l| l.starts_with("{\"Reading\"")).count();
+    assert!(readings > 1000);
+    (sum, readings)
+}
+
 /// `link --mcap` records what the controller sent; PyPI's `mcap` reads it
 /// back (`scripts/mcap-check.py --link`): one pose, window and ellipse per
 /// Reading message the link printed, the first and last poses the
@@ -180,18 +198,7 @@ fn link_mcap_reads_back_with_the_controllers_poses() {
         .output()
         .unwrap();
     assert!(o.status.success(), "link failed: {}", String::from_utf8_lossy(&o.stderr));
-    std::fs::write(&lines, &o.stdout).unwrap();
-    let c = std::process::Command::new("python3")
-        .arg(root().join("scripts/mcap-check.py"))
-        .arg(&mcap)
-        .arg(&lines)
-        .arg("--link")
-        .output()
-        .unwrap();
-    assert!(c.status.success(), "mcap-check: {}", String::from_utf8_lossy(&c.stderr));
-    let sum: serde_json::Value = serde_json::from_slice(&c.stdout).unwrap();
-    let readings = String::from_utf8(o.stdout).unwrap().lines().filter(|l| l.starts_with("{\"Reading\"")).count();
-    assert!(readings > 1000);
+    let (sum, readings) = check_link_recording(&mcap, &lines, &o.stdout);
     assert_eq!(sum["channels"]["/sonar"]["count"], readings);
     assert_eq!(sum["channels"]["/pose/controller"]["schema"], "foxglove.PoseInFrame");
 }
@@ -253,7 +260,6 @@ fn link_live_viewers_see_what_the_recording_holds() {
     let o = link.wait_with_output().unwrap();
     let stderr = rest.join().unwrap();
     assert!(o.status.success(), "link failed: {stderr}");
-    std::fs::write(&lines, &o.stdout).unwrap();
     let summary = |c: std::process::Child| {
         let o = c.wait_with_output().unwrap();
         assert!(o.status.success(), "live-viewer: {}", String::from_utf8_lossy(&o.stderr));
@@ -261,17 +267,7 @@ fn link_live_viewers_see_what_the_recording_holds() {
     };
     let (whole, leaving, late) = (summary(whole), summary(leaving), summary(late));
     // The recording, checked by the independent reader against the link's lines.
-    let c = Command::new("python3")
-        .arg(root().join("scripts/mcap-check.py"))
-        .arg(&mcap)
-        .arg(&lines)
-        .arg("--link")
-        .output()
-        .unwrap();
-    assert!(c.status.success(), "mcap-check: {}", String::from_utf8_lossy(&c.stderr));
-    let rec: serde_json::Value = serde_json::from_slice(&c.stdout).unwrap();
-    let readings = String::from_utf8(o.stdout).unwrap().lines().filter(|l| l.starts_with("{\"Reading\"")).count();
-    assert!(readings > 1000);
+    let (rec, readings) = check_link_recording(&mcap, &lines, &o.stdout);
     eprintln!(
         "live: whole {} messages, leaving {} (left early {}), late {}; recording {readings} readings",
         whole["messages"], leaving["messages"], leaving["left_early"], late["messages"]
