@@ -1,0 +1,160 @@
+//! The search's proposals verified: each candidate of the sweep, and the
+//! rival kept from earlier cycles, scored against the heaviest cluster on
+//! the history's readings; the lead the hand-off waits for.
+
+use super::super::expect::FieldLookup;
+use super::super::particles::{Cluster, ParticleSet};
+use super::super::scan::{Candidate, SCAN_KEEP};
+use super::super::{SAME_PLACE_M, SAME_PLACE_RAD};
+use super::Localizer;
+use crate::referencing::wrap;
+
+impl<const N: usize> Localizer<N> {
+    /// Scores the scan's candidates and the heaviest cluster's mean on the
+    /// history and this cycle: a candidate ahead by the margin becomes
+    /// `verified_share` of the set.
+    /// Returns how far the cluster leads the strongest pose away from it
+    /// (more than a metre or 20°), nats (`+∞` with none, `−∞` with no
+    /// cluster), and that pose with the lead, the rival to keep: the
+    /// cluster's lead over a candidate is measured on the history; over the
+    /// rival kept from earlier cycles it is the lead it had plus this
+    /// cycle's readings' say, and whichever is the smaller stands. A rival
+    /// that leads the cluster by the margin goes into the set like a
+    /// verified candidate.
+    pub(super) fn verify(
+        &self,
+        candidates: &mut heapless::Vec<Candidate, SCAN_KEEP>,
+        cluster: Option<&Cluster>,
+        lookup: &FieldLookup<'_, '_>,
+    ) -> (f32, Option<([f32; 3], f32)>) {
+        let c = &self.cfg;
+        if candidates.is_empty() && self.rival.is_none() {
+            return (if cluster.is_some() { f32::INFINITY } else { f32::NEG_INFINITY }, None);
+        }
+        let extra = c.verify_sigma_mm * c.verify_sigma_mm;
+        let beam = &c.mcl.beam;
+        // Every candidate scored on the history and this cycle; the best few
+        // go on (best first), the first of them in number if it beats the
+        // heaviest cluster by the margin.
+        for cand in candidates.iter_mut() {
+            cand.score = self.history.score(&cand.pose, &self.sensed, lookup, beam, extra);
+            cand.copies = 1;
+        }
+        // Best first: an insertion sort (at most SCAN_KEEP, and core's sorts
+        // link a panic for orderings that are not total).
+        for i in 1..candidates.len() {
+            let mut j = i;
+            while j > 0 {
+                let (Some(a), Some(b)) = (candidates.get(j - 1), candidates.get(j)) else { break };
+                if a.score.total_cmp(&b.score).is_ge() {
+                    break;
+                }
+                candidates.swap(j - 1, j);
+                j -= 1;
+            }
+        }
+        candidates.truncate(usize::from(c.verify_keep).max(1));
+        let score = |p: &[f32; 3]| self.history.score(p, &self.sensed, lookup, beam, extra);
+        // A pose's best score nearby: coordinate ascent in x, y and φ with
+        // halving steps (0.12 m and 3° down to 0.03 m and 0.75°). The scan's
+        // proposals stand on the node grid and its heading bins, the
+        // cluster's mean wherever its particles are: each is refined the
+        // same way before they are compared, or the incumbent would win by
+        // its finer placement alone (in a symmetric map, against its alias).
+        let refine = |start: [f32; 3], s0: f32| {
+            let (mut best, mut s) = (start, s0);
+            for (step_m, step_rad) in [(0.12f32, 0.052f32), (0.06, 0.026), (0.03, 0.013)] {
+                for axis in 0..3 {
+                    let step = if axis == 2 { step_rad } else { step_m };
+                    for sign in [-1.0f32, 1.0] {
+                        let mut p = best;
+                        if let Some(v) = p.get_mut(axis) {
+                            *v += sign * step;
+                        }
+                        let v = score(&p);
+                        if v > s {
+                            (best, s) = (p, v);
+                        }
+                    }
+                }
+            }
+            (best, s)
+        };
+        let (own_pose, own) = match cluster {
+            Some(k) => refine(k.mean, score(&k.mean)),
+            None => ([0.0; 3], f32::NEG_INFINITY),
+        };
+        let elsewhere = |p: &[f32; 3]| {
+            cluster.is_none_or(|k| {
+                dist2(p, &k.mean) > SAME_PLACE_M * SAME_PLACE_M || heading_apart(p, &k.mean) > SAME_PLACE_RAD
+            })
+        };
+        let mut rival = None;
+        let mut lead = if cluster.is_some() { f32::INFINITY } else { f32::NEG_INFINITY };
+        if let Some(k) = candidates.iter_mut().find(|k| elsewhere(&k.pose)) {
+            (k.pose, k.score) = refine(k.pose, k.score);
+            lead = own - k.score;
+            rival = Some((k.pose, lead));
+        }
+        // With no cluster there is nothing to lead, and no rival to keep.
+        let kept = self.rival.filter(|(r, _)| cluster.is_some() && elsewhere(r)).and_then(|(r, lead)| {
+            let (p, _) = refine(r, score(&r));
+            // This cycle's readings alone, at the two refined poses.
+            let now = |q: &[f32; 3]| ParticleSet::<0>::log_likelihood(q, &self.sensed, lookup, beam, extra);
+            let lead = lead + now(&own_pose) - now(&p);
+            elsewhere(&p).then_some((p, lead))
+        });
+        if let Some((p, lead)) = kept {
+            // The same hypothesis as this cycle's candidate keeps its sum;
+            // another one stands if it is the stronger.
+            // (Not `!elsewhere`: a NaN pose is neither near nor elsewhere.)
+            let near = |a: &[f32; 3], b: &[f32; 3]| {
+                dist2(a, b) <= SAME_PLACE_M * SAME_PLACE_M && heading_apart(a, b) <= SAME_PLACE_RAD
+            };
+            if rival.is_none_or(|(q, d)| near(&p, &q) || lead < d) {
+                rival = Some((p, lead));
+            }
+        }
+        let rival = rival.filter(|_| cluster.is_some());
+        if let Some((_, d)) = rival {
+            lead = d;
+        }
+        if self.ekf_awake {
+            // The EKF beside the particles is a hypothesis too: a cluster
+            // elsewhere must lead it as well, by the larger margin (it
+            // tracked until a moment ago).
+            let x = self.ekf_at_cycle_start();
+            if elsewhere(&x) {
+                let ekf = self.history.score(&x, &self.sensed, lookup, beam, extra);
+                lead = lead.min(own - (ekf + c.handoff_lead_awake - c.handoff_lead));
+            }
+        }
+        let share = ((c.verified_share * self.particles.len() as f32) as u16).max(1);
+        if let Some(first) = candidates.first_mut() {
+            if !self.history.is_empty() && first.score > own + c.verify_margin {
+                first.copies = share;
+            }
+        }
+        if let Some((p, d)) = rival {
+            if d < -c.verify_margin && candidates.first().is_none_or(|k| k.copies <= 1) {
+                candidates.truncate(SCAN_KEEP - 1);
+                let _ = candidates.insert(0, Candidate { pose: p, score: own - d, copies: share });
+            }
+        }
+        (lead, rival)
+    }
+}
+
+/// The squared distance between two poses' positions, m².
+#[inline(always)]
+fn dist2(a: &[f32; 3], b: &[f32; 3]) -> f32 {
+    let (dx, dy) = (a[0] - b[0], a[1] - b[1]);
+    dx * dx + dy * dy
+}
+
+/// The difference of two poses' headings, rad, in `[0, π]` (apart: the
+/// callers look at it only when the positions are close, it costs a wrap).
+#[inline(always)]
+fn heading_apart(a: &[f32; 3], b: &[f32; 3]) -> f32 {
+    wrap(a[2] - b[2]).abs()
+}
