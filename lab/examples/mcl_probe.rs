@@ -2,7 +2,9 @@
 //! compiled map's field) tells the true pose from others, on a simulated
 //! run: per cycle, the truth's log-likelihood against random poses and
 //! poses near it; over cycles, the truth's trajectory against random
-//! trajectories carried by the same motion (docs/localization.md).
+//! trajectories carried by the same motion (docs/localization.md), and its
+//! lead over the best wrong place (a start beyond 1 m or 20°) every 10
+//! cycles (issue #36 item 1's "before").
 //!
 //! ```text
 //! cargo run --release -p echoloc-lab --example mcl_probe -- ../shared/data/maps/depot.yaml 1 0.5
@@ -154,6 +156,23 @@ fn main() {
             let st = starts[best];
             let dist = ((st[0] - truth0[0]).powi(2) + (st[1] - truth0[1]).powi(2)).sqrt();
             println!("after {} cycles: truth acc {:.1}; {} of {} random starts better; best {:.1} at {:.2} m from the true start", c+1, acc_truth, better, ntraj, acc[best], dist);
+            // The best wrong place: a start beyond a metre or 20° of the
+            // true one (the localizer's "same place", SAME_PLACE_*).
+            let wrong = order.iter().find(|&&k| {
+                let st = starts[k];
+                let d = ((st[0] - truth0[0]).powi(2) + (st[1] - truth0[1]).powi(2)).sqrt();
+                let a =
+                    (st[2] - truth0[2] + std::f32::consts::PI).rem_euclid(std::f32::consts::TAU) - std::f32::consts::PI;
+                d > 1.0 || a.abs() > 20f32.to_radians()
+            });
+            if let Some(&k) = wrong {
+                println!(
+                    "lead after {} cycles: {:.1} nats over the best wrong place ({:.1} nats)",
+                    c + 1,
+                    acc_truth - acc[k],
+                    acc[k]
+                );
+            }
         }
         let mut lr: Vec<f32> = randoms.iter().map(ll).collect();
         lr.sort_by(|a, b| b.partial_cmp(a).unwrap());
