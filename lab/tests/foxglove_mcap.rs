@@ -205,3 +205,26 @@ fn a_replayed_log_reads_back_and_a_bad_path_writes_nothing() {
     assert!(!o.status.success() && String::from_utf8_lossy(&o.stderr).contains("does not exist"));
     assert!(!plot2.exists());
 }
+
+/// `--live` with an address that does not parse, or a `--speed` that is not
+/// positive, is refused before anything is written.
+#[test]
+fn a_bad_live_address_or_speed_is_refused_and_nothing_written() {
+    let log = root().join("lab/tests/data/depot-hand.csv");
+    let map = root().join("boards/qemu-mps2-an386/depot.map");
+    for (args, expect) in [
+        (vec!["--live", "nonsense"], "--live nonsense: not a HOST:PORT address"),
+        (vec!["--live", "--speed", "0"], "--speed 0 is not a positive number"),
+        (vec!["--live", "--live-hold-s", "1e9"], "--live-hold-s 1000000000 is not a duration"),
+    ] {
+        let out = tmp("fox", "refused.mcap");
+        let o = lab()
+            .args(["replay", "--map", s(&map), "--log", s(&log), "--mcap", s(&out)])
+            .args(&args)
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success() && err.contains(expect), "{args:?}: {err}");
+        assert!(!out.exists(), "{args:?} wrote {}", out.display());
+    }
+}
