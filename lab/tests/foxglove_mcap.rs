@@ -218,11 +218,8 @@ fn a_bad_live_address_or_speed_is_refused_and_nothing_written() {
         (vec!["--live", "--live-hold-s", "1e9"], "--live-hold-s 1000000000 is not a duration"),
     ] {
         let out = tmp("fox", "refused.mcap");
-        let o = lab()
-            .args(["replay", "--map", s(&map), "--log", s(&log), "--mcap", s(&out)])
-            .args(&args)
-            .output()
-            .unwrap();
+        let o =
+            lab().args(["replay", "--map", s(&map), "--log", s(&log), "--mcap", s(&out)]).args(&args).output().unwrap();
         let err = String::from_utf8_lossy(&o.stderr);
         assert!(!o.status.success() && err.contains(expect), "{args:?}: {err}");
         assert!(!out.exists(), "{args:?} wrote {}", out.display());
