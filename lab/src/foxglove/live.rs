@@ -157,10 +157,7 @@ impl Live {
     /// Advertises `topic` before its first message, so that a viewer can
     /// subscribe before the run starts.
     pub fn advertise<T: Message>(&mut self, topic: &str) {
-        let ctx = &self.ctx;
-        T::channels(&mut self.channels)
-            .entry(topic.to_string())
-            .or_insert_with(|| ctx.channel_builder(topic).build::<T>());
+        self.channels.get::<T>(&self.ctx, topic);
     }
 
     /// Waits up to `wait` for a viewer to subscribe, then until its
@@ -192,11 +189,7 @@ impl Live {
             // Whoever asked for the map before it was sent gets it now.
             self.map_wanted.store(false, Ordering::Release);
         }
-        let ctx = &self.ctx;
-        let c = T::channels(&mut self.channels)
-            .entry(topic.to_string())
-            .or_insert_with(|| ctx.channel_builder(topic).build::<T>());
-        c.log_with_time(msg, t_ns);
+        self.channels.get::<T>(&self.ctx, topic).log_with_time(msg, t_ns);
         self.resend_map();
     }
 

@@ -93,6 +93,13 @@ pub struct Channels {
     clouds: BTreeMap<String, Channel<PointCloud>>,
 }
 
+impl Channels {
+    /// The channel of `topic` in `ctx`, made on first use.
+    fn get<T: Message>(&mut self, ctx: &Arc<Context>, topic: &str) -> &Channel<T> {
+        T::channels(self).entry(topic.to_string()).or_insert_with(|| ctx.channel_builder(topic).build::<T>())
+    }
+}
+
 /// A well-known Foxglove message this module writes.
 pub trait Message: foxglove::Encode + Sized {
     /// Its channels.
@@ -165,11 +172,7 @@ impl Recording {
         if let Some(l) = &mut self.live {
             l.send(topic, t_ns, msg);
         }
-        let ctx = &self.ctx;
-        let c = T::channels(&mut self.channels)
-            .entry(topic.to_string())
-            .or_insert_with(|| ctx.channel_builder(topic).build::<T>());
-        c.log_with_time(msg, t_ns);
+        self.channels.get::<T>(&self.ctx, topic).log_with_time(msg, t_ns);
         *self.counts.entry(topic.to_string()).or_insert(0) += 1;
     }
 
