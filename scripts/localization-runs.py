@@ -8,6 +8,7 @@ a time, then a summary.
   python3 scripts/localization-runs.py clutter depot 50 0.7      # --inconsistent 0.7, tracked from the true start
   python3 scripts/localization-runs.py track depot 80            # the default clutter, tracked from the true start
   python3 scripts/localization-runs.py global depot 50 -- --no-particles   # after "--": more arguments for simulate
+  FIELD="400 32" python3 scripts/localization-runs.py global depot 50  # the field at 400 mm nodes, 32 headings
 
 The map is compiled once (with its localization field) into target/loc-maps/.
 Each seed's JSON goes to target/loc-runs/KIND-MAP[-F]/SEED.json; the summary
@@ -24,12 +25,23 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 LAB = os.path.join(ROOT, "target", "release", "echoloc-lab")
 
 
+def field_args():
+    """`FIELD="NODE_MM DIRS"`: the localization field's node spacing and headings (default: map import's)."""
+    f = os.environ.get("FIELD", "").split()
+    if not f:
+        return [], ""
+    if len(f) != 2 or not all(x.isdigit() for x in f):
+        raise SystemExit("FIELD must be \"NODE_MM DIRS\", e.g. FIELD=\"400 32\"")
+    return ["--field-node-mm", f[0], "--field-dirs", f[1]], "-field%sx%s" % (f[0], f[1])
+
+
 def compile_map(name):
     out_dir = os.path.join(ROOT, "target", "loc-maps")
     os.makedirs(out_dir, exist_ok=True)
-    out = os.path.join(out_dir, name + ".map")
+    args, tag = field_args()
+    out = os.path.join(out_dir, name + tag + ".map")
     src = os.path.join(ROOT, "..", "shared", "data", "maps", name + ".yaml")
-    subprocess.run([LAB, "map", "import", src, "-o", out], check=True, stdout=subprocess.DEVNULL)
+    subprocess.run([LAB, "map", "import", src, "-o", out] + args, check=True, stdout=subprocess.DEVNULL)
     return out
 
 
@@ -144,7 +156,7 @@ def main():
         raise SystemExit(__doc__)
     subprocess.run(["cargo", "build", "-q", "--release", "-p", "echoloc-lab"], cwd=ROOT, check=True)
     mapfile = compile_map(name)
-    tag = "%s-%s" % (kind, name) + ("-%s" % argv[3] if len(argv) > 3 else "") + ("-" + "_".join(a.strip("-") for a in extra) if extra else "")
+    tag = "%s-%s" % (kind, name) + field_args()[1] + ("-%s" % argv[3] if len(argv) > 3 else "") + ("-" + "_".join(a.strip("-") for a in extra) if extra else "")
     out_dir = os.path.join(ROOT, "target", "loc-runs", tag)
     os.makedirs(out_dir, exist_ok=True)
     seeds = range(first, first + n)
