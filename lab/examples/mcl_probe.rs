@@ -9,8 +9,11 @@
 //! ```text
 //! cargo run --release -p echoloc-lab --example mcl_probe -- ../shared/data/maps/depot.yaml 1 0.5
 //! ```
-//! Environment: `SIG`, `REL` (the hit's σ, mm and fraction), `NTRAJ`
-//! (random trajectories), `V` (per-cycle lines).
+//! Environment: `SIG`, `REL` (the hit's σ, mm and fraction), `USC`,
+//! `MISS`, `UNP`, `HIT` (the beam model's other settings), `NTRAJ` (random
+//! trajectories), `V` (per-cycle lines), `DIAG` (after 40 cycles, the
+//! readings by what they are at the truth, hit, short, long, unpredicted,
+//! miss, nothing, and the truth's lead over the best wrong place on each).
 #![allow(clippy::needless_range_loop)]
 use echoloc::localize::{FieldLookup, McConfig, ParticleSet, Rng, Sensed};
 use echoloc::referencing::Reading;
@@ -37,6 +40,8 @@ fn main() {
     mc.beam.p_unpredicted = env("UNP", mc.beam.p_unpredicted);
     let hit = env("HIT", mc.beam.sure_mix[0]);
     mc.beam.sure_mix = [hit, (1.0 - hit) * 0.66, (1.0 - hit) * 0.34];
+    let mut kept: Vec<(Vec<Sensed>, [f32; 3])> = Vec::new();
+    let mut best40: Option<[f32; 3]> = None;
     let mut stats = (0usize, 0usize, 0f64, 0f64, 0f64, 0f64);
     let sound = echoloc::driver::SpeedOfSound::from_um_per_s(run.sound.um_per_s()).unwrap();
     let mut rng = Rng::new(5);
@@ -107,11 +112,14 @@ fn main() {
                 let tx = p[0] + co * r.pose[0] - s * r.pose[1];
                 let ty = p[1] + s * r.pose[0] + co * r.pose[1];
                 let e = lookup.expected(tx * 1e3, ty * 1e3, p[2] + r.pose[2]);
-                l += mc.beam.likelihood(r.reading, e).ln();
+                if r.reading != Reading::Invalid {
+                    l += mc.beam.likelihood(r.reading, e).ln();
+                }
             }
             l
         };
         let lt = ll(&t0);
+        kept.push((sensed.clone(), t0));
         // The truth's motion since the start, in the start's frame, applied to each random start.
         let (s0, c0) = (truth0[2].sin(), truth0[2].cos());
         let (gx, gy) = (t0[0] - truth0[0], t0[1] - truth0[1]);
@@ -165,6 +173,9 @@ fn main() {
                     (st[2] - truth0[2] + std::f32::consts::PI).rem_euclid(std::f32::consts::TAU) - std::f32::consts::PI;
                 d > 1.0 || a.abs() > 20f32.to_radians()
             });
+            if c + 1 == 40 {
+                best40 = wrong.map(|&k| starts[k]);
+            }
             if let Some(&k) = wrong {
                 println!(
                     "lead after {} cycles: {:.1} nats over the best wrong place ({:.1} nats)",
@@ -200,5 +211,57 @@ fn main() {
     }
     let n = stats.0 as f64;
     println!("cycles {} truth>=best {:.2} mean(truth-best) {:.1} mean(truth-p99) {:.1} mean(truth-near0.15min) {:.1} mean ln(1+#better) {:.2}", stats.0, stats.1 as f64 / n, stats.2 / n, stats.3 / n, stats.4 / n, stats.5 / n);
+    if let (Some(st), true) = (best40, std::env::var("DIAG").is_ok()) {
+        // Per category of the reading at the truth: count, Σ(ll truth − ll wrong).
+        let names = ["hit", "short", "long", "unpredicted", "miss", "none", "off"];
+        let mut agg = [(0usize, 0f64); 7];
+        let (s0, c0) = (truth0[2].sin(), truth0[2].cos());
+        let b = &mc.beam;
+        for (sensed, t0) in kept.iter().take(40) {
+            let (gx, gy) = (t0[0] - truth0[0], t0[1] - truth0[1]);
+            let rel = [c0 * gx + s0 * gy, -s0 * gx + c0 * gy, t0[2] - truth0[2]];
+            let (s1, c1) = (st[2].sin(), st[2].cos());
+            let pw = [st[0] + c1 * rel[0] - s1 * rel[1], st[1] + s1 * rel[0] + c1 * rel[1], st[2] + rel[2]];
+            for r in sensed {
+                if r.reading == Reading::Invalid {
+                    continue;
+                }
+                let ex = |p: &[f32; 3]| {
+                    let (s, co) = (p[2].sin(), p[2].cos());
+                    let tx = p[0] + co * r.pose[0] - s * r.pose[1];
+                    let ty = p[1] + s * r.pose[0] + co * r.pose[1];
+                    lookup.expected(tx * 1e3, ty * 1e3, p[2] + r.pose[2])
+                };
+                let (et, ew) = (ex(t0), ex(&pw));
+                let d = (b.likelihood(r.reading, et).ln() - b.likelihood(r.reading, ew).ln()) as f64;
+                use echoloc::map::field::Expected as E;
+                let z = match r.reading {
+                    Reading::Echo { range_mm } if range_mm as f32 <= b.r_max_mm => Some(range_mm as f32),
+                    _ => None,
+                };
+                let cat = match (et, z) {
+                    (None, _) => 6,
+                    (Some(E::Nothing), None) => 5,
+                    (Some(E::Nothing), Some(_)) => 3,
+                    (Some(E::Echo { .. }), None) => 4,
+                    (Some(E::Echo { range_mm: rr, .. }), Some(z)) => {
+                        let sg = 3.0 * (b.sigma_mm + b.sigma_rel * rr) * 2.0;
+                        if (z - rr).abs() <= sg {
+                            0
+                        } else if z < rr {
+                            1
+                        } else {
+                            2
+                        }
+                    }
+                };
+                agg[cat].0 += 1;
+                agg[cat].1 += d;
+            }
+        }
+        for (k, n) in names.iter().enumerate() {
+            println!("diag {n:12} {:5} readings  truth - wrong {:8.1} nats", agg[k].0, agg[k].1);
+        }
+    }
     let _ = filters::PARTICLES;
 }
