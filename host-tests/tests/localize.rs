@@ -99,59 +99,6 @@ fn readings(map: &MapView<'_>, pose: [f32; 3]) -> Vec<(Mount, Sensed)> {
         .collect()
 }
 
-/// The field's lookup against the exact prediction (the predictor itself,
-/// window, κ and all) at transducer poses anywhere between the nodes: 400
-/// robots over the depot's free space, the Pioneer ring's 16 transducers.
-/// Where both hear an echo the lookup's range is within the prediction's
-/// own tolerance on at least 85 % (69 % before the nearest node's range was
-/// moved by the transducer's offset along its heading), p50 within 20 mm
-/// and p90 within 90 mm; both agree whether there is an echo at all on at
-/// least 92 %.
-#[test]
-fn the_field_lookup_is_near_the_exact_prediction() {
-    let depot = Depot::load();
-    let map = depot.view();
-    let lookup = FieldLookup::new(map.field());
-    let net = CredenceNet::shipped();
-    let p = params(&map);
-    let mut rng = Rng::new(17);
-    let (mut samples, mut agree, mut tol) = (0usize, 0usize, 0usize);
-    let mut errors = Vec::new();
-    for _ in 0..400 {
-        let r = ParticleSet::<0>::free_pose(&mut rng, &lookup).unwrap();
-        let at = Pose { x_mm: r[0] * 1e3, y_mm: r[1] * 1e3, heading_rad: r[2] };
-        for m in &PIONEER16 {
-            let (exact, _) = predict_mount(&map, &at, m, &p, &net).unwrap();
-            // The transducer's pose composed in f64.
-            let (s, c) = (f64::from(r[2]).sin(), f64::from(r[2]).cos());
-            let (mx, my) = (f64::from(m.x_mm), f64::from(m.y_mm));
-            let tx = f64::from(at.x_mm) + c * mx - s * my;
-            let ty = f64::from(at.y_mm) + s * mx + c * my;
-            let th = f64::from(r[2]) + (f64::from(m.heading_mdeg) / 1000.0).to_radians();
-            samples += 1;
-            match (exact, lookup.expected(tx as f32, ty as f32, th as f32)) {
-                (None, Some(Expected::Nothing)) => agree += 1,
-                (Some(e), Some(Expected::Echo { range_mm, .. })) => {
-                    agree += 1;
-                    let err = (f64::from(range_mm) - f64::from(e.range_mm)).abs();
-                    tol += usize::from(err <= f64::from(e.tolerance_mm));
-                    errors.push(err);
-                }
-                _ => {}
-            }
-        }
-    }
-    errors.sort_by(f64::total_cmp);
-    let q = |f: f64| errors[(errors.len() as f64 * f) as usize];
-    let (p50, p90) = (q(0.5), q(0.9));
-    let within = tol as f64 / errors.len() as f64;
-    let agreement = agree as f64 / samples as f64;
-    println!("{samples} transducers: agree {agreement:.4}, both echo {}, p50 {p50} mm, p90 {p90} mm, within tolerance {within:.4}", errors.len());
-    assert!(agreement >= 0.92, "echo or not agrees on {agreement}");
-    assert!(within >= 0.85, "within the tolerance on {within}");
-    assert!(p50 <= 20.0 && p90 <= 90.0, "p50 {p50} mm, p90 {p90} mm");
-}
-
 #[test]
 fn weighing_equals_a_brute_force() {
     let depot = Depot::load();

@@ -105,24 +105,11 @@ impl<'f, 'a> FieldLookup<'f, 'a> {
                 return Some(Expected::Echo { range_mm: r, sure: sa });
             }
         }
-        // The nearest corner's, its range moved by how far the transducer
-        // stands ahead of the corner along its heading: a surface the beam
-        // meets square comes that much nearer (exact for it, and within
-        // `|offset|·(1 − cos δ)` for a face δ off square), which is the
-        // first-order error of a coarse field.
-        let (near, du, dv) = match (fu < 0.5, fv < 0.5) {
-            (true, true) => (e00, fu, fv),
-            (false, true) => (e10, fu - 1.0, fv),
-            (true, false) => (e01, fu, fv - 1.0),
-            (false, false) => (e11, fu - 1.0, fv - 1.0),
-        };
-        match near {
-            Some(Expected::Echo { range_mm, sure }) => {
-                let (s, c) = crate::f32math::sin_cos(heading_rad);
-                let ahead = (du * c + dv * s) * self.node_mm;
-                Some(Expected::Echo { range_mm: (range_mm - ahead).max(0.0), sure })
-            }
-            other => other,
+        match (fu < 0.5, fv < 0.5) {
+            (true, true) => e00,
+            (false, true) => e10,
+            (true, false) => e01,
+            (false, false) => e11,
         }
     }
 
