@@ -9,6 +9,7 @@ a time, then a summary.
   python3 scripts/localization-runs.py track depot 80            # the default clutter, tracked from the true start
   python3 scripts/localization-runs.py global depot 50 -- --no-particles   # after "--": more arguments for simulate
   FIELD="400 32" python3 scripts/localization-runs.py global depot 50  # the field at 400 mm nodes, 32 headings
+  FIELD_FALLBACK=60 python3 scripts/localization-runs.py global depot 50  # the field's fallback lobe at 60 deg
 
 The map is compiled once (with its localization field) into target/loc-maps/.
 Each seed's JSON goes to target/loc-runs/KIND-MAP[-F]/SEED.json; the summary
@@ -26,13 +27,20 @@ LAB = os.path.join(ROOT, "target", "release", "echoloc-lab")
 
 
 def field_args():
-    """`FIELD="NODE_MM DIRS"`: the localization field's node spacing and headings (default: map import's)."""
+    """`FIELD="NODE_MM DIRS"`: the localization field's node spacing and
+    headings; `FIELD_FALLBACK=DEG`: its fallback lobe (default: map import's)."""
+    args, tag = [], ""
     f = os.environ.get("FIELD", "").split()
-    if not f:
-        return [], ""
-    if len(f) != 2 or not all(x.isdigit() for x in f):
-        raise SystemExit("FIELD must be \"NODE_MM DIRS\", e.g. FIELD=\"400 32\"")
-    return ["--field-node-mm", f[0], "--field-dirs", f[1]], "-field%sx%s" % (f[0], f[1])
+    if f:
+        if len(f) != 2 or not all(x.isdigit() for x in f):
+            raise SystemExit("FIELD must be \"NODE_MM DIRS\", e.g. FIELD=\"400 32\"")
+        args, tag = ["--field-node-mm", f[0], "--field-dirs", f[1]], "-field%sx%s" % (f[0], f[1])
+    fb = os.environ.get("FIELD_FALLBACK", "")
+    if fb:
+        if not fb.isdigit():
+            raise SystemExit("FIELD_FALLBACK must be whole degrees, e.g. FIELD_FALLBACK=60")
+        args, tag = args + ["--field-fallback-deg", fb], tag + "-fallback%s" % fb
+    return args, tag
 
 
 def compile_map(name):

@@ -7,27 +7,42 @@
 # (lab/examples/mcl_probe.rs). A sample of wrong places, not the sweep's:
 # the lead it reports is an upper bound on the lead over every wrong place.
 #
-#   bash scripts/mcl-lead.sh [--seeds N] [--maps "depot bookstore"] [--clutter "0.5 0.7"]
+#   bash scripts/mcl-lead.sh [--seeds N] [--maps "depot bookstore"] [--clutter "0.5 0.7"] [--import "ARGS"]
+#
+# --import: each map compiled first by `echoloc-lab map import MAP.yaml ARGS`
+# (e.g. --import "--field-fallback-deg 60") into target/mcl-lead/.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 seeds=10
 maps="depot bookstore tb3_sandbox"
 clutter="0.5 0.7"
+import=
 while [ $# -gt 0 ]; do
   case "$1" in
     --seeds) seeds=$2; shift 2 ;;
     --maps) maps=$2; shift 2 ;;
     --clutter) clutter=$2; shift 2 ;;
-    *) echo "usage: bash scripts/mcl-lead.sh [--seeds N] [--maps \"…\"] [--clutter \"…\"]" >&2; exit 2 ;;
+    --import) import=$2; shift 2 ;;
+    *) echo "usage: bash scripts/mcl-lead.sh [--seeds N] [--maps \"…\"] [--clutter \"…\"] [--import \"ARGS\"]" >&2; exit 2 ;;
   esac
 done
 cargo build -q --release -p echoloc-lab --example mcl_probe
+if [ -n "$import" ]; then
+  cargo build -q --release -p echoloc-lab
+  mkdir -p target/mcl-lead
+fi
 rows=$(mktemp)
 trap 'rm -f "$rows"' EXIT
 for map in $maps; do
+  src="../shared/data/maps/$map.yaml"
+  if [ -n "$import" ]; then
+    # shellcheck disable=SC2086 # the arguments are words
+    target/release/echoloc-lab map import "$src" -o "target/mcl-lead/$map.map" $import >/dev/null
+    src="target/mcl-lead/$map.map"
+  fi
   for inc in $clutter; do
     for seed in $(seq 1 "$seeds"); do
-      out=$(NTRAJ=20000 target/release/examples/mcl_probe "../shared/data/maps/$map.yaml" "$seed" "$inc" | grep '^lead after' || true)
+      out=$(NTRAJ=20000 target/release/examples/mcl_probe "$src" "$seed" "$inc" | grep '^lead after' || true)
       l10=$(awk '/after 10 cycles/ {print $5}' <<<"$out")
       l40=$(awk '/after 40 cycles/ {print $5}' <<<"$out")
       echo "$map $inc $seed ${l10:-nan} ${l40:-nan}" | tee -a "$rows" >&2

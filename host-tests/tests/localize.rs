@@ -99,6 +99,37 @@ fn readings(map: &MapView<'_>, pose: [f32; 3]) -> Vec<(Mount, Sensed)> {
         .collect()
 }
 
+/// The field header's fallback lobe (`fallback_mdeg`, reserved = 0 before
+/// issue #36): 0 reads as none, a lobe above δ_max and below 90° is
+/// accepted and read back, anything else refused as a bad header.
+#[test]
+fn a_field_fallback_lobe_is_read_back_or_refused() {
+    let depot = Depot::load();
+    let header = *depot.view().field().header();
+    assert_eq!(header.fallback_mdeg, 0, "the committed depot blob has no fallback");
+    assert_eq!(depot.view().field().fallback_deg(), None);
+    let bytes = depot.bytes().to_vec();
+    let at = bytes.windows(64).position(|w| w == bytemuck::bytes_of(&header)).expect("the field header in the blob");
+    let with = |mdeg: u32| {
+        let mut b = bytes.clone();
+        b[at + 60..at + 64].copy_from_slice(&mdeg.to_le_bytes());
+        let crc = echoloc::map::crc32(&b[echoloc::map::BLOB_HEADER_LEN..]);
+        b[12..16].copy_from_slice(&crc.to_le_bytes());
+        let mut words = vec![0u64; b.len().div_ceil(8)];
+        bytemuck::cast_slice_mut::<u64, u8>(&mut words)[..b.len()].copy_from_slice(&b);
+        let len = b.len();
+        MapView::new(&bytemuck::cast_slice::<u64, u8>(&words)[..len]).map(|v| v.field().fallback_deg())
+    };
+    assert_eq!(with(60_000), Ok(Some(60.0)));
+    assert_eq!(
+        with(header.delta_max_mdeg + 1).map(|d| d.map(|d| (d * 1000.0).round() as u32)),
+        Ok(Some(header.delta_max_mdeg + 1))
+    );
+    for bad in [header.delta_max_mdeg, 1, 90_000, u32::MAX] {
+        assert!(matches!(with(bad), Err(BlobError::Field(_))), "{bad} mdeg: {:?}", with(bad));
+    }
+}
+
 #[test]
 fn weighing_equals_a_brute_force() {
     let depot = Depot::load();

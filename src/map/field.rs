@@ -14,7 +14,7 @@
 //! field header (64 bytes, u32 unless said)
 //!                 node_mm, origin x i32, origin y i32, cols, rows, dirs,
 //!                 runs, nodes, free_nodes, reach_mm, clearance_mm,
-//!                 r_min_mm, r_max_mm, half_angle_mdeg, delta_max_mdeg, reserved = 0
+//!                 r_min_mm, r_max_mm, half_angle_mdeg, delta_max_mdeg, fallback_mdeg
 //! row starts      u32 × (rows + 1): the runs of row r are row_start[r]..row_start[r+1]
 //! runs × 8        col u16, len u16, first u32: nodes col..col+len of the row,
 //!                 numbered from `first` (each run's first is the last's end)
@@ -73,8 +73,13 @@ pub struct FieldHeader {
     pub half_angle_mdeg: u32,
     /// δ_max, millidegrees.
     pub delta_max_mdeg: u32,
-    /// Zero.
-    pub reserved: u32,
+    /// Where the prediction with δ_max credits no surface, the entry holds
+    /// the first surface a lobe this wide finds, unsure, millidegrees (0:
+    /// none; else above δ_max and below 90°). A sonar hears faces beyond the
+    /// tracker's lobe at times (rough, near, or at an edge); the particles'
+    /// model then scores such an echo as the unsure echo it may be rather
+    /// than as one from nowhere.
+    pub fallback_mdeg: u32,
 }
 
 /// A run of stored nodes along a row.
@@ -222,7 +227,7 @@ const FIELD_HEADER_NONE: FieldHeader = FieldHeader {
     r_max_mm: 0,
     half_angle_mdeg: 0,
     delta_max_mdeg: 0,
-    reserved: 0,
+    fallback_mdeg: 0,
 };
 
 /// The field read in place. See the module docs.
@@ -240,7 +245,7 @@ pub struct FieldView<'a> {
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum FieldError {
     /// Spacing, headings, grid size or coordinates out of range, or a
-    /// reserved word set.
+    /// fallback lobe not between δ_max and 90°.
     Header,
     /// Row starts not from 0 to `runs`, or decreasing.
     RowStart {
@@ -280,7 +285,7 @@ impl<'a> FieldView<'a> {
                 && h.rows > 0
                 && h.cols <= u32::from(u16::MAX)
                 && h.rows <= u32::from(u16::MAX)
-                && h.reserved == 0
+                && (h.fallback_mdeg == 0 || (h.fallback_mdeg > h.delta_max_mdeg && h.fallback_mdeg < 90_000))
                 && within(h.origin_x, h.cols, h.node_mm)
                 && within(h.origin_y, h.rows, h.node_mm)
         };
@@ -380,6 +385,13 @@ impl<'a> FieldView<'a> {
     pub fn delta_max_deg(&self) -> Option<f32> {
         let d = self.header.delta_max_mdeg;
         (!self.is_empty() && d > 0 && d < 90_000).then(|| d as f32 / 1000.0)
+    }
+
+    /// The fallback lobe, degrees ([`FieldHeader::fallback_mdeg`]; `None`:
+    /// no field, or none).
+    pub fn fallback_deg(&self) -> Option<f32> {
+        let d = self.header.fallback_mdeg;
+        (!self.is_empty() && d > 0).then(|| d as f32 / 1000.0)
     }
 
     /// Headings per node.

@@ -85,6 +85,11 @@ pub enum MapCmd {
         /// Localization field: the robot's centre keeps this far from obstacles, mm.
         #[arg(long = "field-clearance-mm", default_value_t = FieldOptions::default().clearance_mm)]
         field_clearance_mm: u32,
+        /// Localization field: where the prediction credits no surface, the
+        /// first surface a lobe this wide finds is stored, unsure, degrees (0:
+        /// none; else above the face lobe and below 90).
+        #[arg(long = "field-fallback-deg", default_value_t = FieldOptions::default().fallback_deg)]
+        field_fallback_deg: f32,
         /// The map's face lobe: how far off its normal a face still echoes,
         /// degrees; the prediction's δ_max for the field and for the tracker
         /// (default 8 with --walls lines, real buildings; else 15).
@@ -354,6 +359,7 @@ pub fn run(cmd: MapCmd) -> Result<String, LabError> {
             field_dirs,
             field_reach_mm,
             field_clearance_mm,
+            field_fallback_deg,
             face_lobe_deg,
             no_field,
         } => {
@@ -363,6 +369,7 @@ pub fn run(cmd: MapCmd) -> Result<String, LabError> {
                 reach_mm: field_reach_mm,
                 clearance_mm: field_clearance_mm,
                 delta_max_deg: FieldOptions::default().delta_max_deg,
+                fallback_deg: field_fallback_deg,
             };
             field.validate().map_err(|e| LabError(format!("--{e}")))?;
             let opt = ImportOptions {
