@@ -95,6 +95,49 @@ fn bad_inputs_fail_clearly_and_write_nothing() {
     assert!(String::from_utf8_lossy(&o.stderr).contains("/nonexistent/x.geojson"));
 }
 
+/// The field's fallback lobe (issue #36): refused below the face lobe, at
+/// 90° and beyond, with nothing written; a good one is recorded in the
+/// blob's field header and measured by `map field-check` under the same rule.
+#[test]
+fn a_field_fallback_lobe_is_checked_recorded_and_measured() {
+    let input = tmp("fallback.geojson");
+    std::fs::write(&input, r#"{"type":"Polygon","coordinates":[[[0,0],[6,0],[6,4],[0,4],[0,0]],[[2,1.5],[3,1.5],[3,2.5],[2,2.5],[2,1.5]]]}"#).unwrap();
+    let out = tmp("fallback.map");
+    for bad in ["10", "15", "90", "-5", "nan"] {
+        let _ = std::fs::remove_file(&out);
+        let o = lab()
+            .args(["map", "import"])
+            .arg(&input)
+            .arg("-o")
+            .arg(&out)
+            .arg(format!("--field-fallback-deg={bad}"))
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success(), "{bad}: should fail");
+        assert!(err.contains("fallback"), "{bad}: {err}");
+        assert!(!out.exists(), "{bad}: nothing written");
+    }
+    let o = lab()
+        .args(["map", "import"])
+        .arg(&input)
+        .arg("-o")
+        .arg(&out)
+        .args(["--field-fallback-deg", "60"])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let bytes = std::fs::read(&out).unwrap();
+    let mut words = vec![0u64; bytes.len().div_ceil(8)];
+    bytemuck::cast_slice_mut::<u64, u8>(&mut words)[..bytes.len()].copy_from_slice(&bytes);
+    let view = echoloc::map::MapView::new(&bytemuck::cast_slice::<u64, u8>(&words)[..bytes.len()]).unwrap();
+    assert_eq!(view.field().fallback_deg(), Some(60.0));
+    let o = lab().args(["map", "field-check", "--robots", "50"]).arg(&out).output().unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert!(v["from_the_fallback_lobe"].as_f64().is_some(), "{v}");
+}
+
 fn squares(n: usize) -> String {
     squares_at(n, 2.0)
 }
