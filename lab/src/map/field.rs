@@ -123,8 +123,6 @@ impl FieldData {
     }
 }
 
-/// Squared distance (mm²) from `p` to the piece `pts` (0 inside it):
-/// convex and counter-clockwise, or a two-vertex wall.
 /// The predictor's settings with the fallback lobe (`None` for none).
 fn fallback_params(params: &PredictParams, fallback_deg: f32) -> Option<PredictParams> {
     (fallback_deg > 0.0).then(|| {
@@ -158,6 +156,8 @@ fn expected_at<M: MapSource + ?Sized>(
     }
 }
 
+/// Squared distance (mm²) from `p` to the piece `pts` (0 inside it):
+/// convex and counter-clockwise, or a two-vertex wall.
 fn dist2_to_piece(p: (f64, f64), pts: &[Point]) -> f64 {
     let n = pts.len();
     let mut inside = n >= 3;
