@@ -37,14 +37,16 @@ for line in open(sys.argv[1]):
 # The budgets of issue #11 (None: reported, no budget).
 budget = {"insns_per_ring": 400_000, "insns_per_window": 25_000, "insns_per_kappa": 150,
           "stack_bytes": 4096, "ram_static_bytes": 32_768,
-          # issue #27 raised the code budget from 96 KiB for the localizer
-          "flash_bytes": 112 * 1024,
+          # issue #27 raised the code budget from 96 KiB for the localizer,
+          # issue #36 item 4 to 120 KiB for its hypothesis bank
+          "flash_bytes": 120 * 1024,
           # issue #12: the whole loop against the scenario's ground truth (its own bounds)
           "pose_rmse_m": 0.05, "heading_rmse_deg": 1.0,
           # issue #27: a ring cycle while tracking and while searching with 1 024
           # particles (the mean; the worst is reported beside it), the localizer's state
+          # (24 KiB; issue #36 item 4: 32 KiB with the hypotheses)
           "loc_tracking_insns_per_cycle": 400_000, "loc_search_insns_per_cycle": 25_000_000,
-          "localizer_state_bytes": 24 * 1024}
+          "localizer_state_bytes": 32 * 1024}
 fmt = lambda v: f"{v:.6g}" if v != int(v) else str(int(v))
 now = {}
 for line in """$metrics""".splitlines():

@@ -144,23 +144,60 @@ impl History {
         beam: &BeamModel,
         extra_var_mm2: f32,
     ) -> f32 {
-        let mut ll = ParticleSet::<0>::log_likelihood(p, current, lookup, beam, extra_var_mm2);
-        for ((cycle, &n), f) in self.readings.iter().zip(&self.counts).zip(&self.frames) {
+        let mut ll = 0.0;
+        self.each_cycle(p, current, lookup, beam, extra_var_mm2, |v| ll += v);
+        ll
+    }
+
+    /// [`History::score`] cycle by cycle: `current`'s first, then each kept
+    /// cycle's in the order they are stored (0 past the kept ones).
+    pub fn score_cycles(
+        &self,
+        p: &[f32; 3],
+        current: &[Sensed],
+        lookup: &FieldLookup<'_, '_>,
+        beam: &BeamModel,
+        extra_var_mm2: f32,
+    ) -> [f32; HISTORY_CYCLES + 1] {
+        let mut out = [0.0; HISTORY_CYCLES + 1];
+        let mut slots = out.iter_mut();
+        self.each_cycle(p, current, lookup, beam, extra_var_mm2, |v| {
+            if let Some(o) = slots.next() {
+                *o = v;
+            }
+        });
+        out
+    }
+
+    /// Calls `f` with `current`'s log-likelihood at `p`, then each stored
+    /// cycle's (a closure, not an array: `score` is the search's inner loop
+    /// and stays what it was).
+    #[inline(always)]
+    fn each_cycle(
+        &self,
+        p: &[f32; 3],
+        current: &[Sensed],
+        lookup: &FieldLookup<'_, '_>,
+        beam: &BeamModel,
+        extra_var_mm2: f32,
+        mut f: impl FnMut(f32),
+    ) {
+        f(ParticleSet::<0>::log_likelihood(p, current, lookup, beam, extra_var_mm2));
+        for ((cycle, &n), fr) in self.readings.iter().zip(&self.counts).zip(&self.frames) {
             let mut rs = [Sensed { pose: [0.0; 3], reading: Reading::Invalid }; HISTORY_READINGS];
-            let (s, c) = sin_cos(f[2]);
+            let (s, c) = sin_cos(fr[2]);
             for (d, k) in rs.iter_mut().zip(cycle.iter().take(usize::from(n))) {
                 let v = k.sensed();
                 let q = v.pose;
                 *d = Sensed {
-                    pose: [f[0] + c * q[0] - s * q[1], f[1] + s * q[0] + c * q[1], f[2] + q[2]],
+                    pose: [fr[0] + c * q[0] - s * q[1], fr[1] + s * q[0] + c * q[1], fr[2] + q[2]],
                     reading: v.reading,
                 };
             }
             if let Some(rs) = rs.get(..usize::from(n)) {
-                ll += ParticleSet::<0>::log_likelihood(p, rs, lookup, beam, extra_var_mm2);
+                f(ParticleSet::<0>::log_likelihood(p, rs, lookup, beam, extra_var_mm2));
             }
         }
-        ll
     }
 }
 

@@ -10,6 +10,7 @@
 //! | [`expect`] | [`FieldLookup`]: what a transducer anywhere should hear, from the compiled map's field |
 //! | [`scan`] | [`Sweep`]: the search's proposals, every heading of a sweep of free nodes scored cheaply against the cycle's readings |
 //! | [`history`] | [`History`]: the last cycles' readings in the current frame, to verify the search's proposals on |
+//! | [`hypotheses`] | [`Bank`]: the places still plausible besides the cluster, each with the cluster's lead over it summed since it was proposed; the hand-off's margin |
 //! | [`rng`] | [`Rng`]: xoshiro128++, uniform and approximately normal draws |
 //!
 //! Everything is `f32`, allocation-free, and held by the caller: a
@@ -32,6 +33,7 @@
 pub mod beam;
 pub mod expect;
 pub mod history;
+pub mod hypotheses;
 pub mod localizer;
 pub mod particles;
 pub mod rng;
@@ -47,6 +49,7 @@ pub(crate) const SAME_PLACE_RAD: f32 = SAME_PLACE_DEG * core::f32::consts::PI / 
 pub use beam::BeamModel;
 pub use expect::FieldLookup;
 pub use history::History;
+pub use hypotheses::{Bank, Hypothesis, BANK};
 pub use localizer::{CycleReport, LocalizeError, Localizer, LocalizerConfig, LocalizerCounts, Mode, Start, MAX_SENSED};
 pub use particles::{kld_bound, Cluster, McConfig, MotionNoise, ParticleError, ParticleSet, Sensed, Weighed};
 pub use rng::Rng;

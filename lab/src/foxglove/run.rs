@@ -205,6 +205,7 @@ impl Cycles {
                     ("sigma_x_m", format!("{:.3}", sd[0])),
                     ("sigma_y_m", format!("{:.3}", sd[1])),
                     ("lead_nats", format!("{:.1}", row.lead)),
+                    ("hypotheses_alive", row.hypotheses.to_string()),
                 ],
             );
             e.arrows.push(scene::arrow(m, 0.5, [0.0, 0.59, 0.24, 1.0]));

@@ -154,9 +154,12 @@ pub struct CycleRow {
     /// While searching, the heaviest cluster after the cycle: its mean, its
     /// position covariance (σ²x, σxy, σ²y) and its weight ...
     pub cluster: Option<([f32; 3], [f32; 3], f32)>,
-    /// ... and the strongest place found away from it with the cluster's
-    /// lead over it (nats).
+    /// ... and the strongest place of the hypothesis bank away from it with
+    /// the cluster's lead over it (nats) ...
     pub rival: Option<([f32; 3], f32)>,
+    /// ... and how many places the search weighs: the cluster and the
+    /// bank's.
+    pub hypotheses: u8,
     /// The heaviest cluster's weight (while searching).
     pub cluster_weight: f32,
     /// Distance driven since the start, m (along the truth where known,
@@ -343,6 +346,12 @@ pub struct Start {
     /// (`PredictParams::nearer_delta_deg`, which makes echoes a nearer mapped
     /// surface may have returned inconclusive); off only to measure what it does.
     pub nearer_check: bool,
+    /// The hand-off's margin over the hypothesis bank
+    /// (`LocalizerConfig::handoff_z`); `None`: the default.
+    pub handoff_z: Option<f32>,
+    /// The places the hypothesis bank keeps (`LocalizerConfig::bank_keep`);
+    /// `None`: the default.
+    pub bank: Option<u8>,
 }
 
 impl Start {
@@ -357,6 +366,8 @@ impl Start {
             snapshots: Vec::new(),
             cycle_clouds: false,
             recovery: true,
+            handoff_z: None,
+            bank: None,
             robust: true,
             calibration: true,
             nearer_check: true,
@@ -465,7 +476,10 @@ fn run_with<M: MapSource, const N: usize>(
         StartMode::Around => localize::Start::Around { pose: start.pose, sigma: start.sigma },
         StartMode::Unknown => localize::Start::Unknown,
     };
-    let lcfg = LocalizerConfig::DEFAULT;
+    let lcfg = LocalizerConfig {
+        handoff_z: start.handoff_z.unwrap_or(LocalizerConfig::DEFAULT.handoff_z),
+        ..LocalizerConfig::DEFAULT
+    };
     let mut loc: Box<Localizer<N>> = Box::new(Localizer::new(lcfg, cfg, verdicts, start.seed));
     loc.start(how, field).map_err(|e| format!("start: {e}"))?;
     if N > 0 {
@@ -504,7 +518,8 @@ fn run_with<M: MapSource, const N: usize>(
                 t.clouds.push(Cloud { time_s, why: "asked", particles: loc.particles().poses().to_vec() });
             }
         }
-        let (cluster, rival) = loc.hypotheses();
+        let (cluster, bank) = loc.hypotheses();
+        let rival = bank.iter().min_by(|a, b| a.lead.total_cmp(&b.lead)).map(|h| (h.pose, h.lead));
         let cluster = cluster.map(|c| {
             let p = c.covariance;
             (c.mean, [p[0][0], p[0][1], p[1][1]], c.weight)
@@ -533,6 +548,7 @@ fn run_with<M: MapSource, const N: usize>(
             lead: rep.lead,
             cluster,
             rival,
+            hypotheses: rep.hypotheses,
             cluster_weight: rep.cluster_weight,
             distance_m: travelled,
         });

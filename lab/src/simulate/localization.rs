@@ -99,6 +99,11 @@ pub fn report(t: &Trace, kidnaps: &[f64]) -> Value {
             "time_s": round4(r.time_s - start_time),
             "distance_m": round4(r.distance_m),
         })),
+        "hypotheses_alive": {
+            "max": rows.iter().map(|r| r.hypotheses).max().unwrap_or(0),
+            "final": last.map_or(0, |r| r.hypotheses),
+            "cycles_searching_with_more_than_one": rows.iter().filter(|r| r.mode == Mode::Searching && r.hypotheses > 1).count(),
+        },
         "handoffs": handoffs.len(),
         "wrong_handoffs": wrong,
         "wakes": t.localizer.wakes,

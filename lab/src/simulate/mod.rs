@@ -105,6 +105,17 @@ pub struct SimulateArgs {
     /// localizer before issue #27), to measure what they do.
     #[arg(long = "no-particles")]
     no_particles: bool,
+    /// The hand-off's margin over the hypothesis bank: a place's summed
+    /// lead less Z times the root of its cycles' squared leads must pass
+    /// the hand-off's lead (`LocalizerConfig::handoff_z`; default 0), to
+    /// measure what it does.
+    #[arg(long = "handoff-z", value_parser = parse_handoff_z)]
+    handoff_z: Option<f32>,
+    /// The places the hypothesis bank keeps besides the cluster, 0–8
+    /// (`LocalizerConfig::bank_keep`; default 1, #27's kept rival), to
+    /// measure what more do.
+    #[arg(long = "bank", value_parser = clap::value_parser!(u8).range(0..=8))]
+    bank: Option<u8>,
     /// Writes one CSV row per ring cycle: the mode, the estimate, its σ and
     /// the true pose (docs/localization.md).
     #[arg(long)]
@@ -209,6 +220,8 @@ pub fn simulate_cmd(a: &SimulateArgs) -> Result<String, LabError> {
         calibration: !a.no_calibration,
         nearer_check: !a.no_nearer_check,
         particles: !a.no_particles,
+        handoff_z: a.handoff_z,
+        bank: a.bank,
         seed: a.seed,
         snapshots: run.kidnaps.iter().map(|k| k.0).collect(),
         cycle_clouds: a.mcap.is_some(),
@@ -313,5 +326,13 @@ impl Progress {
         if let Some(b) = self.bar.take() {
             b.finish_and_clear();
         }
+    }
+}
+
+/// `--handoff-z`: finite and not negative.
+fn parse_handoff_z(s: &str) -> Result<f32, String> {
+    match s.parse::<f32>() {
+        Ok(z) if z.is_finite() && z >= 0.0 => Ok(z),
+        _ => Err(format!("{s:?} is not a finite number ≥ 0")),
     }
 }

@@ -38,6 +38,18 @@ pub struct LocalizerConfig {
     /// ... and leads the search's best proposal elsewhere on the last
     /// cycles' readings by this many nats, every one of those cycles.
     pub handoff_lead: f32,
+    /// ... where a place's lead is its sum less this many times the root
+    /// of its cycles' squared leads ([`crate::localize::hypotheses`]): the
+    /// margin grows with how alike two places have looked, and two that
+    /// stay level are never decided between.
+    pub handoff_z: f32,
+    /// The places the hypothesis bank keeps besides the cluster (at most
+    /// [`BANK`](crate::localize::hypotheses::BANK); 1 is #27's kept rival).
+    pub bank_keep: u8,
+    /// A place of the bank the cluster leads by this many nats (after the
+    /// margin) is refuted and dropped (`+∞`: never; a place goes only when
+    /// a stronger one takes its room).
+    pub bank_refute: f32,
     /// ... and the EKF's own pose, when it runs beside the particles after
     /// a wake-up, by this many: it tracked until a moment ago, and in heavy
     /// clutter an alias far away can fit the last cycles better than the
@@ -95,6 +107,9 @@ impl LocalizerConfig {
         verified_share: 0.15,
         verify_keep: 16,
         handoff_lead: 25.0,
+        handoff_z: 0.0,
+        bank_keep: 1,
+        bank_refute: f32::INFINITY,
         handoff_lead_awake: 150.0,
         handoff_sigma_floor: [0.10, 0.10, 3.0 * core::f32::consts::PI / 180.0],
         wake_sigma: [0.5, 0.5, 15.0 * core::f32::consts::PI / 180.0],

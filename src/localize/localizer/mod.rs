@@ -22,7 +22,7 @@
 //! | [`report`] | [`Mode`], [`CycleReport`], [`LocalizerCounts`]: what it says it did |
 //! | [`error`] | [`LocalizeError`] |
 //! | `monitor` | the fit monitor: do the readings still fit the EKF's pose? |
-//! | `verify` | the search's proposals and the kept rival scored against the cluster on the last cycles' readings |
+//! | `verify` | the search's proposals and the hypothesis bank's places scored against the cluster on the last cycles' readings |
 
 pub mod config;
 pub mod error;
@@ -38,6 +38,7 @@ use heapless::Vec;
 
 use super::expect::FieldLookup;
 use super::history::History;
+use super::hypotheses::{Bank, Hypothesis};
 use super::particles::{Cluster, ParticleSet, Sensed, Weighed};
 use super::scan::{Candidate, Sweep, SCAN_KEEP};
 use crate::credence::Credence;
@@ -87,14 +88,14 @@ pub struct Localizer<const N: usize> {
     offset: [f32; 3],
     /// The particles' estimate at the cycle's start and its covariance.
     cluster: Option<Cluster>,
-    /// The strongest pose found away from the cluster (at the cycle's
-    /// start), and the cluster's lead over it summed over every cycle since
-    /// it was found (nats): kept from cycle to cycle, because the sweep
-    /// visits a node only every few cycles and the history holds 8, and an
-    /// alias that only a feature driven past long ago tells apart must
-    /// neither count as beaten when it is not proposed nor draw level when
-    /// the feature leaves the history.
-    rival: Option<([f32; 3], f32)>,
+    /// The places found away from the cluster (at the cycle's start), each
+    /// with the cluster's lead over it summed over every cycle since it was
+    /// found: kept from cycle to cycle, because the sweep visits a node
+    /// only every few cycles and the history holds 8, and an alias that
+    /// only a feature driven past long ago tells apart must neither count
+    /// as beaten when it is not proposed nor draw level when the feature
+    /// leaves the history.
+    bank: Bank,
     converged: u8,
     sweep: Sweep,
     history: History,
@@ -135,7 +136,7 @@ impl<const N: usize> Localizer<N> {
             dropped: 0,
             offset: [0.0; 3],
             cluster: None,
-            rival: None,
+            bank: Bank::new(),
             converged: 0,
             sweep: Sweep::default(),
             history: History::new(),
@@ -186,7 +187,7 @@ impl<const N: usize> Localizer<N> {
         self.offset = [0.0; 3];
         self.converged = 0;
         self.cluster = None;
-        self.rival = None;
+        self.bank.clear();
         self.history.clear();
         self.ekf_awake = false;
         self.calm = 0;
@@ -264,6 +265,7 @@ impl<const N: usize> Localizer<N> {
             dropped: self.dropped,
             weighed: Weighed::default(),
             lead: 0.0,
+            hypotheses: 0,
             calmed: false,
             fit: [0.0; 3],
             verdicts: VerdictCounts::default(),
@@ -311,12 +313,16 @@ impl<const N: usize> Localizer<N> {
                 // best of them elsewhere on the last cycles' readings.
                 let mut candidates: heapless::Vec<Candidate, SCAN_KEEP> = heapless::Vec::new();
                 self.sweep.scan(&self.sensed, &lookup, &cfg.mcl.beam, &cfg.scan, &mut candidates);
-                // A cluster that is not the last one has a new rival.
+                // A cluster that is not the last one has a new bank: the
+                // leads were the last one's. (Restating them as the new
+                // one's, and keeping the last one as a place, was tried:
+                // docs/localization.md.)
                 if !same {
-                    self.rival = None;
+                    self.bank.clear();
                 }
-                let (lead, rival) = self.verify(&mut candidates, cluster.as_ref(), &lookup);
-                report.lead = lead;
+                report.lead = self.verify(&mut candidates, cluster.as_ref(), &lookup);
+                report.hypotheses = u8::from(cluster.is_some()) + self.bank.len() as u8;
+                let lead = report.lead;
                 // While the EKF beside the particles still has its own
                 // readings (its gate's monitor does not say lost), the
                 // particles may confirm it but not move it far: a map with
@@ -357,8 +363,10 @@ impl<const N: usize> Localizer<N> {
                             c.mean = compose(&c.mean, &self.offset);
                             c
                         });
-                        // The rival too.
-                        self.rival = rival.map(|(r, d)| (compose(&r, &self.offset), d));
+                        // The bank's places too.
+                        for p in self.bank.poses_mut() {
+                            *p = compose(p, &self.offset);
+                        }
                         // The particles' heaviest cluster holds half the weight
                         // where the EKF beside them is, cycle after cycle: it
                         // was a false alarm, and the search ends (the fit
@@ -382,7 +390,7 @@ impl<const N: usize> Localizer<N> {
                             self.ekf_awake = false;
                             self.calm = 0;
                             self.cluster = None;
-                            self.rival = None;
+                            self.bank.clear();
                             self.fit.1 = self.fit.0;
                             self.misfit = 0;
                             self.counts.calmed = self.counts.calmed.saturating_add(1);
@@ -435,7 +443,7 @@ impl<const N: usize> Localizer<N> {
         self.mode = Mode::Tracking;
         self.converged = 0;
         self.cluster = None;
-        self.rival = None;
+        self.bank.clear();
         self.counts.handoffs = self.counts.handoffs.saturating_add(1);
         Ok(())
     }
@@ -456,7 +464,7 @@ impl<const N: usize> Localizer<N> {
         self.ekf_awake = true;
         self.calm = 0;
         self.converged = 0;
-        self.rival = None;
+        self.bank.clear();
         self.cluster = self.particles.cluster(c.handoff_radius_m, c.handoff_angle_rad);
         self.counts.wakes = self.counts.wakes.saturating_add(1);
         Ok(())
@@ -507,13 +515,13 @@ impl<const N: usize> Localizer<N> {
 
     /// The places the search weighs now (while searching; at the last
     /// cycle's end, in that cycle's frame): the heaviest cluster, and the
-    /// strongest pose found away from it with the cluster's lead over it
+    /// bank's places away from it, each with the cluster's lead over it
     /// summed over every cycle since it was found (nats). For a viewer
     /// (`echoloc-lab`'s `/hypotheses`); the search itself reads the fields.
-    pub fn hypotheses(&self) -> (Option<&Cluster>, Option<([f32; 3], f32)>) {
+    pub fn hypotheses(&self) -> (Option<&Cluster>, &[Hypothesis]) {
         match self.mode {
-            Mode::Searching => (self.cluster.as_ref(), self.rival),
-            _ => (None, None),
+            Mode::Searching => (self.cluster.as_ref(), self.bank.members()),
+            _ => (None, &[]),
         }
     }
 

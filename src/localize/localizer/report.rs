@@ -51,6 +51,10 @@ pub struct CycleReport {
     /// How far the heaviest cluster led the search's best proposal
     /// elsewhere on the last cycles' readings, nats (while searching).
     pub lead: f32,
+    /// The places the search weighs (while searching): the heaviest
+    /// cluster and the hypothesis bank's places away from it. More than
+    /// one alive and level, the search goes on.
+    pub hypotheses: u8,
     /// The search ended because the EKF beside it was no longer lost.
     pub calmed: bool,
     /// The cycle's verdicts (none while searching with no EKF beside).
