@@ -81,6 +81,14 @@ fn a_run_from_no_pose_with_a_kidnap_finds_itself_and_the_trace_agrees() {
     assert!(k["recovered_after_m"].as_f64().unwrap() <= 30.0, "{k}");
     assert!(l["handoffs"].as_u64().unwrap() >= 2, "{l}");
     assert_eq!(l["wrong_handoffs"], serde_json::json!([]));
+    // The places weighed: the cluster and the default bank of one (#27's
+    // kept rival); more than one only while searching.
+    let alive = &l["hypotheses_alive"];
+    assert!((1..=2).contains(&alive["max"].as_u64().unwrap()), "{alive}");
+    assert_eq!(alive["final"], 0, "tracking at the end: {alive}");
+    assert!(
+        alive["cycles_searching_with_more_than_one"].as_u64().unwrap() <= l["modes"]["searching"].as_u64().unwrap()
+    );
     // Before the first convergence the trace says searching, never tracking.
     let first = l["first_convergence"]["time_s"].as_f64().unwrap() + rows[0][0].parse::<f64>().unwrap() - 0.7;
     assert!(rows.iter().filter(|r| r[0].parse::<f64>().unwrap() < first).all(|r| r[1] != "tracking"));
@@ -137,12 +145,15 @@ fn replay_finds_itself_in_a_log() {
 fn bad_starts_and_kidnaps_fail_clearly_and_write_nothing() {
     let dir = scratch("bad");
     let trace = dir.join("trace.csv");
-    let cases: [(&[&str], &str); 5] = [
+    let cases: [(&[&str], &str); 8] = [
         (&["--start", "500,-40,0,0.5,10"], "not in the map's free space"),
         (&["--start", "somewhere"], "--start \"somewhere\": expected unknown"),
         (&["--start", "1,2,3,-1,10"], "σ_m must be within"),
         (&["--kidnap", "10:400,0,0"], "not in the free space the route drives in"),
         (&["--kidnap", "30:1,2"], "expected T_s:dx_m,dy_m,dθ_deg"),
+        (&["--bank", "9"], "9 is not in 0..=8"),
+        (&["--handoff-z=nan"], "\"nan\" is not a finite number ≥ 0"),
+        (&["--handoff-z=-0.5"], "\"-0.5\" is not a finite number ≥ 0"),
     ];
     let map = depot();
     for (extra, message) in cases {
