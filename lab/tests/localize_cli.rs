@@ -94,6 +94,34 @@ fn a_run_from_no_pose_with_a_kidnap_finds_itself_and_the_trace_agrees() {
     assert!(rows.iter().filter(|r| r[0].parse::<f64>().unwrap() < first).all(|r| r[1] != "tracking"));
 }
 
+/// `--bank N` reaches the localizer: with 8 places kept the search weighs
+/// more than the default's two (the cluster and #27's kept rival), never
+/// more than the cluster and 8.
+#[test]
+fn a_larger_bank_weighs_more_places() {
+    let alive = |bank: &str| {
+        let v = run_json(&[
+            "simulate",
+            "--json",
+            "--map",
+            s(&depot()),
+            "--seed",
+            "1",
+            "--distance-m",
+            "30",
+            "--start",
+            "unknown",
+            "--bank",
+            bank,
+        ]);
+        v["localization"]["hypotheses_alive"]["max"].as_u64().unwrap()
+    };
+    assert_eq!(alive("0"), 1);
+    assert_eq!(alive("1"), 2);
+    let eight = alive("8");
+    assert!((3..=9).contains(&eight), "{eight}");
+}
+
 /// A log of a simulated run replayed with no start pose finds itself, and
 /// gives the very localization report the simulated run gave. (Seed 2 is
 /// one the simulation finds early; not every seed is found within 30 m:

@@ -476,9 +476,11 @@ fn run_with<M: MapSource, const N: usize>(
         StartMode::Around => localize::Start::Around { pose: start.pose, sigma: start.sigma },
         StartMode::Unknown => localize::Start::Unknown,
     };
+    let d = LocalizerConfig::DEFAULT;
     let lcfg = LocalizerConfig {
-        handoff_z: start.handoff_z.unwrap_or(LocalizerConfig::DEFAULT.handoff_z),
-        ..LocalizerConfig::DEFAULT
+        handoff_z: start.handoff_z.unwrap_or(d.handoff_z),
+        bank_keep: start.bank.unwrap_or(d.bank_keep),
+        ..d
     };
     let mut loc: Box<Localizer<N>> = Box::new(Localizer::new(lcfg, cfg, verdicts, start.seed));
     loc.start(how, field).map_err(|e| format!("start: {e}"))?;
