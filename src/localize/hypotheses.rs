@@ -150,14 +150,16 @@ impl Bank {
     /// Drops every member `keep` refuses, and of two members `near` each
     /// other (refined onto one place) the one the cluster leads by more.
     pub fn retain(&mut self, keep: impl Fn(&Hypothesis) -> bool, near: impl Fn(&[f32; 3], &[f32; 3]) -> bool) {
-        self.members.retain(|h| keep(h));
+        // One loop, no `Vec::retain`: its index arithmetic keeps overflow
+        // checks the optimiser cannot remove (scripts/panic-never.sh).
         let mut i = 0;
         while i < self.members.len() {
-            let dup = self.members.iter().enumerate().find_map(|(j, m)| {
-                let a = self.members.get(i)?;
-                (j != i && near(&a.pose, &m.pose) && (m.lead < a.lead || (m.lead == a.lead && j < i))).then_some(())
-            });
-            if dup.is_some() {
+            let Some(a) = self.members.get(i) else { break };
+            let gone = !keep(a)
+                || self.members.iter().enumerate().any(|(j, m)| {
+                    j != i && keep(m) && near(&a.pose, &m.pose) && (m.lead < a.lead || (m.lead == a.lead && j < i))
+                });
+            if gone {
                 self.members.remove(i);
             } else {
                 i += 1;

@@ -321,7 +321,7 @@ impl<const N: usize> Localizer<N> {
                     self.bank.clear();
                 }
                 report.lead = self.verify(&mut candidates, cluster.as_ref(), &lookup);
-                report.hypotheses = u8::from(cluster.is_some()) + self.bank.len() as u8;
+                report.hypotheses = u8::from(cluster.is_some()).saturating_add(self.bank.len() as u8);
                 let lead = report.lead;
                 // While the EKF beside the particles still has its own
                 // readings (its gate's monitor does not say lost), the

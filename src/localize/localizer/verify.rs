@@ -141,7 +141,7 @@ impl<const N: usize> Localizer<N> {
                 } else {
                     0.0
                 };
-                let cycles = (self.history.len() + 1).min(HISTORY_CYCLES + 1) as u16;
+                let cycles = (self.history.len().min(HISTORY_CYCLES) as u16).saturating_add(1);
                 let h = Hypothesis::new(k.pose, own - k.score, spread2, cycles);
                 // A proposal the bank has no room for still counts.
                 let known = bank.members().iter().any(|m| near(&m.pose, &h.pose));
