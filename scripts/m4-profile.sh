@@ -10,12 +10,14 @@
 # grid walk and candidate keys, their sort, the search call, ...) and every
 # other one to the outermost function of its inlined chain: where a
 # window's time goes, by the predictor's own steps.
-# Usage: [LINES=1] [PREDICT=1] bash scripts/m4-profile.sh [TOP]
+# BIN=find_profile profiles the localizer searching instead (its first
+# four ring cycles of the main firmware's find-itself scenario).
+# Usage: [BIN=ring_profile] [LINES=1] [PREDICT=1] bash scripts/m4-profile.sh [TOP]
 set -euo pipefail
 cd "$(dirname "$0")/.."
 target=thumbv7em-none-eabihf
-cargo build -q -p qemu-mps2-an386 --bin ring_profile --target "$target" --release
-elf="target/$target/release/ring_profile"
+cargo build -q -p qemu-mps2-an386 --bin "${BIN:=ring_profile}" --target "$target" --release
+elf="target/$target/release/$BIN"
 log=$(mktemp)
 trap 'rm -f "$log" "$log.sym"' EXIT
 timeout 300 qemu-system-arm -cpu cortex-m4 -machine mps2-an386 -nographic -monitor none -serial none \

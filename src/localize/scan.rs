@@ -186,15 +186,33 @@ impl Sweep {
             // arrays in step, with no bounds checks left but the neighbour's
             // entry (42 k instructions a node on the M4 the other way round).
             let mut scores = [0i32; SCAN_DIRS];
-            for (l, g) in lut.iter().zip(geo) {
-                for (s, &(nbi, d)) in scores.iter_mut().zip(g.iter()).take(dirs) {
-                    // Off the field: as bad as the worst byte, and a little worse.
-                    // At most SCAN_READINGS terms of |·| ≤ 128 (`SCORE_FITS`):
-                    // the sum never nears i32's limits, so wrapping is exact.
-                    *s = s.wrapping_add(match nb[usize::from(nbi) & 31].get(usize::from(d)) {
-                        Some(&v) => i32::from(l[usize::from(v)]),
-                        None => -128,
-                    });
+            // A field of SCAN_DIRS headings whose node has all 25
+            // neighbours (most nodes: the stored nodes reach 400 mm past
+            // the free ones) takes the fast path; both add the same terms.
+            let mut whole: [&[u8; SCAN_DIRS]; 32] = [&UNUSED; 32];
+            let all =
+                nb.iter().take(SIDE * SIDE).zip(whole.iter_mut()).all(|(e, w)| {
+                    match <&[u8; SCAN_DIRS]>::try_from(*e) {
+                        Ok(a) => {
+                            *w = a;
+                            true
+                        }
+                        Err(_) => false,
+                    }
+                });
+            if all {
+                add_whole(&mut scores, lut, geo, &whole);
+            } else {
+                for (l, g) in lut.iter().zip(geo) {
+                    for (s, &(nbi, d)) in scores.iter_mut().zip(g.iter()).take(dirs) {
+                        // Off the field: as bad as the worst byte, and a little worse.
+                        // At most SCAN_READINGS terms of |·| ≤ 128 (`SCORE_FITS`):
+                        // the sum never nears i32's limits, so wrapping is exact.
+                        *s = s.wrapping_add(match nb[usize::from(nbi) & 31].get(usize::from(d)) {
+                            Some(&v) => i32::from(l[usize::from(v)]),
+                            None => -128,
+                        });
+                    }
                 }
             }
             let mut top = [(i32::MIN, 0usize); 2];
@@ -253,6 +271,32 @@ impl Sweep {
                 score: k.score as f32 / 16.0,
                 copies: 1,
             });
+        }
+    }
+}
+
+/// The unused places of a node's neighbour table (never read: the
+/// neighbour indices are below 25).
+static UNUSED: [u8; SCAN_DIRS] = [0; SCAN_DIRS];
+
+/// A node's scores when all its neighbours hold `SCAN_DIRS` headings: the
+/// same sum as the general loop with neither an off-field case nor a bounds
+/// check left (the masks are no-ops: indices below 32 and `SCAN_DIRS`), 14
+/// instructions a reading and heading on the M4 against 24 (issue #36 item 4).
+#[inline(always)]
+fn add_whole(
+    scores: &mut [i32; SCAN_DIRS],
+    lut: &[[i8; 256]],
+    geo: &[[(u8, u8); SCAN_DIRS]],
+    whole: &[&[u8; SCAN_DIRS]; 32],
+) {
+    const _POW2: () = assert!(SCAN_DIRS.is_power_of_two());
+    for (l, g) in lut.iter().zip(geo) {
+        for (s, &(nbi, d)) in scores.iter_mut().zip(g.iter()) {
+            let e = whole.get(usize::from(nbi) & 31).and_then(|w| w.get(usize::from(d) & (SCAN_DIRS - 1)));
+            let v = e.and_then(|&v| l.get(usize::from(v))).copied().unwrap_or(0);
+            // As the general loop: at most SCAN_READINGS terms of |·| ≤ 128.
+            *s = s.wrapping_add(i32::from(v));
         }
     }
 }
@@ -330,6 +374,42 @@ mod tests {
                 assert!(!seen[k as usize], "n {n} stride {s}");
                 seen[k as usize] = true;
                 k = (k + s) % n;
+            }
+        }
+    }
+
+    /// The fast path's sums against a plain triple loop in `i64` over the
+    /// same tables (random bytes, neighbour indices and headings), for one
+    /// to SCAN_READINGS readings.
+    #[test]
+    fn the_fast_path_adds_what_a_plain_loop_adds() {
+        let mut rng = crate::localize::rng::Rng::new(36);
+        let mut byte = || rng.next_u32() as u8;
+        let mut rows = [[0u8; SCAN_DIRS]; 25];
+        for _ in 0..20 {
+            for r in rows.iter_mut() {
+                r.iter_mut().for_each(|v| *v = byte());
+            }
+            let mut lut = [[0i8; 256]; SCAN_READINGS];
+            let mut geo = [[(0u8, 0u8); SCAN_DIRS]; SCAN_READINGS];
+            for (l, g) in lut.iter_mut().zip(geo.iter_mut()) {
+                l.iter_mut().for_each(|v| *v = byte() as i8);
+                g.iter_mut().for_each(|p| *p = (byte() % 25, byte() % SCAN_DIRS as u8));
+            }
+            let mut whole: [&[u8; SCAN_DIRS]; 32] = [&UNUSED; 32];
+            for (w, r) in whole.iter_mut().zip(rows.iter()) {
+                *w = r;
+            }
+            let k = 1 + usize::from(byte()) % SCAN_READINGS;
+            let mut fast = [0i32; SCAN_DIRS];
+            add_whole(&mut fast, &lut[..k], &geo[..k], &whole);
+            for (b, &f) in fast.iter().enumerate() {
+                let mut want = 0i64;
+                for r in 0..k {
+                    let (nbi, d) = geo[r][b];
+                    want += i64::from(lut[r][usize::from(rows[usize::from(nbi)][usize::from(d)])]);
+                }
+                assert_eq!(i64::from(f), want, "heading {b}, {k} readings");
             }
         }
     }
