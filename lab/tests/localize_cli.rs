@@ -20,6 +20,15 @@ fn scratch(test: &str) -> PathBuf {
     d
 }
 
+/// `simulate --json` on the depot from no pose: seed, distance, then `more`.
+fn find_on_depot(seed: &str, distance_m: &str, more: &[&str]) -> serde_json::Value {
+    let depot = depot();
+    let mut args = vec!["simulate", "--json", "--map", s(&depot), "--seed", seed, "--distance-m", distance_m];
+    args.extend(["--start", "unknown"]);
+    args.extend(more);
+    run_json(&args)
+}
+
 /// The trace's rows: (time, mode, x, y, θ, σx, σy, σθ, ref x, ref y, ref θ).
 fn rows(csv: &Path) -> (String, Vec<Vec<String>>) {
     let text = std::fs::read_to_string(csv).unwrap();
@@ -35,22 +44,7 @@ fn rows(csv: &Path) -> (String, Vec<Vec<String>>) {
 fn a_run_from_no_pose_with_a_kidnap_finds_itself_and_the_trace_agrees() {
     let dir = scratch("find");
     let trace = dir.join("trace.csv");
-    let v = run_json(&[
-        "simulate",
-        "--json",
-        "--map",
-        s(&depot()),
-        "--seed",
-        "6",
-        "--distance-m",
-        "70",
-        "--start",
-        "unknown",
-        "--kidnap",
-        "75:-4,2,-90",
-        "--trace",
-        s(&trace),
-    ]);
+    let v = find_on_depot("6", "70", &["--kidnap", "75:-4,2,-90", "--trace", s(&trace)]);
     let l = &v["localization"];
     let (header, rows) = rows(&trace);
     assert_eq!(
@@ -100,20 +94,7 @@ fn a_run_from_no_pose_with_a_kidnap_finds_itself_and_the_trace_agrees() {
 #[test]
 fn a_larger_bank_weighs_more_places() {
     let alive = |bank: &str| {
-        let v = run_json(&[
-            "simulate",
-            "--json",
-            "--map",
-            s(&depot()),
-            "--seed",
-            "1",
-            "--distance-m",
-            "30",
-            "--start",
-            "unknown",
-            "--bank",
-            bank,
-        ]);
+        let v = find_on_depot("1", "30", &["--bank", bank]);
         v["localization"]["hypotheses_alive"]["max"].as_u64().unwrap()
     };
     assert_eq!(alive("0"), 1);

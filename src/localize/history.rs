@@ -4,9 +4,7 @@
 //! metres of driving do. The search verifies its proposals on them before
 //! it lets them into the particle set in number.
 
-use super::beam::BeamModel;
-use super::expect::FieldLookup;
-use super::particles::{ParticleSet, Sensed};
+use super::measure::{Measure, Sensed};
 use crate::f32math::sin_cos;
 use crate::referencing::{wrap, Reading};
 
@@ -134,34 +132,20 @@ impl History {
         }
     }
 
-    /// The log-likelihood of every kept reading, and of `current`, at pose
-    /// `p` (in the current cycle's start frame).
-    pub fn score(
-        &self,
-        p: &[f32; 3],
-        current: &[Sensed],
-        lookup: &FieldLookup<'_, '_>,
-        beam: &BeamModel,
-        extra_var_mm2: f32,
-    ) -> f32 {
+    /// The log-likelihood under `m` of every kept reading, and of
+    /// `current`, at pose `p` (in the current cycle's start frame).
+    pub fn score(&self, p: &[f32; 3], current: &[Sensed], m: &Measure<'_>) -> f32 {
         let mut ll = 0.0;
-        self.each_cycle(p, current, lookup, beam, extra_var_mm2, |v| ll += v);
+        self.each_cycle(p, current, m, |v| ll += v);
         ll
     }
 
     /// [`History::score`] cycle by cycle: `current`'s first, then each kept
     /// cycle's in the order they are stored (0 past the kept ones).
-    pub fn score_cycles(
-        &self,
-        p: &[f32; 3],
-        current: &[Sensed],
-        lookup: &FieldLookup<'_, '_>,
-        beam: &BeamModel,
-        extra_var_mm2: f32,
-    ) -> [f32; HISTORY_CYCLES + 1] {
+    pub fn score_cycles(&self, p: &[f32; 3], current: &[Sensed], m: &Measure<'_>) -> [f32; HISTORY_CYCLES + 1] {
         let mut out = [0.0; HISTORY_CYCLES + 1];
         let mut slots = out.iter_mut();
-        self.each_cycle(p, current, lookup, beam, extra_var_mm2, |v| {
+        self.each_cycle(p, current, m, |v| {
             if let Some(o) = slots.next() {
                 *o = v;
             }
@@ -173,16 +157,8 @@ impl History {
     /// cycle's (a closure, not an array: `score` is the search's inner loop
     /// and stays what it was).
     #[inline(always)]
-    fn each_cycle(
-        &self,
-        p: &[f32; 3],
-        current: &[Sensed],
-        lookup: &FieldLookup<'_, '_>,
-        beam: &BeamModel,
-        extra_var_mm2: f32,
-        mut f: impl FnMut(f32),
-    ) {
-        f(ParticleSet::<0>::log_likelihood(p, current, lookup, beam, extra_var_mm2));
+    fn each_cycle(&self, p: &[f32; 3], current: &[Sensed], m: &Measure<'_>, mut f: impl FnMut(f32)) {
+        f(m.log_likelihood(p, current));
         for ((cycle, &n), fr) in self.readings.iter().zip(&self.counts).zip(&self.frames) {
             let mut rs = [Sensed { pose: [0.0; 3], reading: Reading::Invalid }; HISTORY_READINGS];
             let (s, c) = sin_cos(fr[2]);
@@ -195,7 +171,7 @@ impl History {
                 };
             }
             if let Some(rs) = rs.get(..usize::from(n)) {
-                f(ParticleSet::<0>::log_likelihood(p, rs, lookup, beam, extra_var_mm2));
+                f(m.log_likelihood(p, rs));
             }
         }
     }

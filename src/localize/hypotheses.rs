@@ -67,6 +67,13 @@ impl Hypothesis {
         Self { pose, lead, spread2, cycles }
     }
 
+    /// The cluster led it by `d` nats on one more cycle.
+    fn add(&mut self, d: f32) {
+        self.lead += d;
+        self.spread2 += d * d;
+        self.cycles = self.cycles.saturating_add(1);
+    }
+
     /// The lead less `z` times its per-cycle spread: what the hand-off
     /// counts (NaN counts as level: `−∞`).
     pub fn margin_lead(&self, z: f32) -> f32 {
@@ -77,6 +84,19 @@ impl Hypothesis {
             m
         }
     }
+}
+
+/// What became of a proposal ([`Bank::propose`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Proposal {
+    /// It joined the bank (maybe in the place of a weaker member).
+    Joined,
+    /// It is a member already: it stood near one, whose record stands.
+    Member,
+    /// No room for it (or none kept, or its lead is NaN): not kept, but the
+    /// hand-off may still have to beat it this cycle.
+    Refused,
 }
 
 /// The places kept besides the cluster, at most [`BANK`].
@@ -101,9 +121,18 @@ impl Bank {
         &self.members
     }
 
-    /// Each place's pose, to refine or carry.
+    /// Each place's pose, to carry.
     pub fn poses_mut(&mut self) -> impl Iterator<Item = &mut [f32; 3]> {
         self.members.iter_mut().map(|h| &mut h.pose)
+    }
+
+    /// One more cycle for every place: `f` may move its pose (refine it)
+    /// and says by how much the cluster led it, nats ([`Bank::observe`]).
+    pub fn observe_each(&mut self, mut f: impl FnMut(&mut [f32; 3]) -> f32) {
+        for h in self.members.iter_mut() {
+            let d = f(&mut h.pose);
+            h.add(d);
+        }
     }
 
     /// How many places are kept.
@@ -119,31 +148,31 @@ impl Bank {
     /// The cluster led member `i` by `d` nats on one more cycle.
     pub fn observe(&mut self, i: usize, d: f32) {
         if let Some(h) = self.members.get_mut(i) {
-            h.lead += d;
-            h.spread2 += d * d;
-            h.cycles = h.cycles.saturating_add(1);
+            h.add(d);
         }
     }
 
     /// A place the search proposes. One `near` a member is that member (it
     /// keeps its longer record); else it joins, and with `keep` members
     /// (at most [`BANK`]) it takes the place of the member the cluster
-    /// leads by the most, if the cluster leads it by less. Whether it
-    /// joined.
-    pub fn propose(&mut self, h: Hypothesis, keep: usize, near: impl Fn(&[f32; 3], &[f32; 3]) -> bool) -> bool {
-        if h.lead.is_nan() || keep == 0 || self.members.iter().any(|m| near(&m.pose, &h.pose)) {
-            return false;
+    /// leads by the most, if the cluster leads it by less.
+    pub fn propose(&mut self, h: Hypothesis, keep: usize, near: impl Fn(&[f32; 3], &[f32; 3]) -> bool) -> Proposal {
+        if self.members.iter().any(|m| near(&m.pose, &h.pose)) {
+            return Proposal::Member;
+        }
+        if h.lead.is_nan() || keep == 0 {
+            return Proposal::Refused;
         }
         if self.members.len() < keep && self.members.push(h).is_ok() {
-            return true;
+            return Proposal::Joined;
         }
         let weakest = self.members.iter_mut().max_by(|a, b| a.lead.total_cmp(&b.lead));
         match weakest {
             Some(w) if h.lead < w.lead => {
                 *w = h;
-                true
+                Proposal::Joined
             }
-            _ => false,
+            _ => Proposal::Refused,
         }
     }
 
@@ -194,11 +223,11 @@ mod tests {
     #[test]
     fn a_proposal_near_a_member_is_that_member() {
         let mut b = Bank::new();
-        assert!(b.propose(at(0.0, 40.0), BANK, near));
+        assert_eq!(b.propose(at(0.0, 40.0), BANK, near), Proposal::Joined);
         b.observe(0, 30.0);
         // Proposed again nearby with a short record that looks closer: the
         // longer record stands.
-        assert!(!b.propose(at(0.5, 5.0), BANK, near));
+        assert_eq!(b.propose(at(0.5, 5.0), BANK, near), Proposal::Member);
         assert_eq!(b.len(), 1);
         assert_eq!(b.members()[0].lead, 70.0);
         assert_eq!(b.members()[0].cycles, 2);
@@ -206,22 +235,44 @@ mod tests {
     }
 
     #[test]
+    fn observe_each_moves_every_place_and_adds_its_lead() {
+        let mut b = Bank::new();
+        b.propose(at(0.0, 10.0), BANK, near);
+        b.propose(at(5.0, 20.0), BANK, near);
+        // Each place refined 0.25 m along x; the cluster led the first by 3
+        // nats this cycle, the second by −4.
+        b.observe_each(|p| {
+            p[0] += 0.25;
+            if p[0] < 1.0 {
+                3.0
+            } else {
+                -4.0
+            }
+        });
+        let m = b.members();
+        assert_eq!((m[0].pose[0], m[0].lead, m[0].spread2, m[0].cycles), (0.25, 13.0, 100.0 + 9.0, 2));
+        assert_eq!((m[1].pose[0], m[1].lead, m[1].spread2, m[1].cycles), (5.25, 16.0, 400.0 + 16.0, 2));
+    }
+
+    #[test]
     fn a_full_bank_gives_up_its_weakest_member_for_a_stronger_one_only() {
         let mut b = Bank::new();
         for i in 0..BANK {
-            assert!(b.propose(at(10.0 * i as f32, 10.0 + i as f32), BANK, near));
+            assert_eq!(b.propose(at(10.0 * i as f32, 10.0 + i as f32), BANK, near), Proposal::Joined);
         }
         // Weaker than every member: refused.
-        assert!(!b.propose(at(500.0, 100.0), BANK, near));
+        assert_eq!(b.propose(at(500.0, 100.0), BANK, near), Proposal::Refused);
         assert_eq!(b.len(), BANK);
         // Stronger than the weakest (lead 17 at x = 70): takes its place.
-        assert!(b.propose(at(600.0, 12.5), BANK, near));
+        assert_eq!(b.propose(at(600.0, 12.5), BANK, near), Proposal::Joined);
         assert_eq!(b.len(), BANK);
         assert!(b.members().iter().all(|h| h.pose[0] != 70.0));
         assert!(b.members().iter().any(|h| h.pose[0] == 600.0));
         assert_eq!(b.strongest().map(|h| h.pose[0]), Some(0.0));
         // NaN is no proposal.
-        assert!(!b.propose(at(700.0, f32::NAN), BANK, near));
+        assert_eq!(b.propose(at(700.0, f32::NAN), BANK, near), Proposal::Refused);
+        // Near a member, NaN or not, it is that member.
+        assert_eq!(b.propose(at(0.5, f32::NAN), BANK, near), Proposal::Member);
     }
 
     #[test]
@@ -229,15 +280,15 @@ mod tests {
         // #27's rule: one place kept; a proposal elsewhere takes its place
         // only if the cluster leads it by less, one nearby is it.
         let mut b = Bank::new();
-        assert!(b.propose(at(0.0, 30.0), 1, near));
-        assert!(!b.propose(at(10.0, 40.0), 1, near));
-        assert!(!b.propose(at(0.5, 5.0), 1, near));
+        assert_eq!(b.propose(at(0.0, 30.0), 1, near), Proposal::Joined);
+        assert_eq!(b.propose(at(10.0, 40.0), 1, near), Proposal::Refused);
+        assert_eq!(b.propose(at(0.5, 5.0), 1, near), Proposal::Member);
         assert_eq!(b.members(), &[at(0.0, 30.0)]);
-        assert!(b.propose(at(10.0, 20.0), 1, near));
+        assert_eq!(b.propose(at(10.0, 20.0), 1, near), Proposal::Joined);
         assert_eq!(b.members(), &[at(10.0, 20.0)]);
         // None kept: nothing joins.
         let mut none = Bank::new();
-        assert!(!none.propose(at(0.0, 1.0), 0, near));
+        assert_eq!(none.propose(at(0.0, 1.0), 0, near), Proposal::Refused);
         assert!(none.is_empty());
     }
 

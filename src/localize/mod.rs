@@ -8,6 +8,7 @@
 //! | [`particles`] | [`ParticleSet`]: `N` particles, weighing, low-variance resampling in place, KLD sampling, augmented MCL, the heaviest cluster |
 //! | [`beam`] | [`BeamModel`]: the sonar's measurement model (hit, short, miss, random) |
 //! | [`expect`] | [`FieldLookup`]: what a transducer anywhere should hear, from the compiled map's field |
+//! | [`measure`] | [`Measure`]: how well a cycle's readings ([`Sensed`]) fit a pose, the beam model on the field: what the particles, the history and the fit monitor score by |
 //! | [`scan`] | [`Sweep`]: the search's proposals, every heading of a sweep of free nodes scored cheaply against the cycle's readings |
 //! | [`history`] | [`History`]: the last cycles' readings in the current frame, to verify the search's proposals on |
 //! | [`hypotheses`] | [`Bank`]: the places still plausible besides the cluster, each with the cluster's lead over it summed since it was proposed; the hand-off's margin |
@@ -35,6 +36,7 @@ pub mod expect;
 pub mod history;
 pub mod hypotheses;
 pub mod localizer;
+pub mod measure;
 pub mod particles;
 pub mod rng;
 pub mod scan;
@@ -49,8 +51,9 @@ pub(crate) const SAME_PLACE_RAD: f32 = SAME_PLACE_DEG * core::f32::consts::PI / 
 pub use beam::BeamModel;
 pub use expect::FieldLookup;
 pub use history::History;
-pub use hypotheses::{Bank, Hypothesis, BANK};
+pub use hypotheses::{Bank, Hypothesis, Proposal, BANK};
 pub use localizer::{CycleReport, LocalizeError, Localizer, LocalizerConfig, LocalizerCounts, Mode, Start, MAX_SENSED};
-pub use particles::{kld_bound, Cluster, McConfig, MotionNoise, ParticleError, ParticleSet, Sensed, Weighed};
+pub use measure::{Measure, Sensed};
+pub use particles::{kld_bound, Cluster, McConfig, MotionNoise, ParticleError, ParticleSet, Weighed};
 pub use rng::Rng;
 pub use scan::{Candidate, ScanConfig, Sweep};

@@ -4,7 +4,7 @@
 //! need many.
 
 use super::super::expect::FieldLookup;
-use super::super::particles::{ParticleSet, Sensed};
+use super::super::measure::{Measure, Sensed};
 use super::{compose, CycleReport, Localizer};
 use crate::f32math::sin_cos;
 
@@ -22,7 +22,7 @@ impl<const N: usize> Localizer<N> {
             return false;
         }
         let start = self.ekf_at_cycle_start();
-        let fit = ParticleSet::<0>::log_likelihood(&start, &self.sensed, lookup, &c.mcl.beam, 0.0) / k as f32;
+        let fit = Measure::new(lookup, &c.mcl.beam, 0.0).log_likelihood(&start, &self.sensed) / k as f32;
         let (fast, slow) = self.fit;
         let (fast, slow) = if self.fit_seen == 0 { (fit, fit) } else { (fast + c.fit_fast * (fit - fast), slow) };
         let bad = fast < slow - c.fit_drop;

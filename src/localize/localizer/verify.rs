@@ -4,8 +4,9 @@
 
 use super::super::expect::FieldLookup;
 use super::super::history::HISTORY_CYCLES;
-use super::super::hypotheses::{Bank, Hypothesis, BANK};
-use super::super::particles::{Cluster, ParticleSet};
+use super::super::hypotheses::{Bank, Hypothesis, Proposal, BANK};
+use super::super::measure::Measure;
+use super::super::particles::Cluster;
 use super::super::scan::{Candidate, SCAN_KEEP};
 use super::super::{SAME_PLACE_M, SAME_PLACE_RAD};
 use super::Localizer;
@@ -50,13 +51,12 @@ impl<const N: usize> Localizer<N> {
         if candidates.is_empty() && bank.is_empty() {
             return if cluster.is_some() { f32::INFINITY } else { f32::NEG_INFINITY };
         }
-        let extra = c.verify_sigma_mm * c.verify_sigma_mm;
-        let beam = &c.mcl.beam;
+        let m = Measure::new(lookup, &c.mcl.beam, c.verify_sigma_mm * c.verify_sigma_mm);
         // Every candidate scored on the history and this cycle; the best few
         // go on (best first), the first of them in number if it beats the
         // heaviest cluster by the margin.
         for cand in candidates.iter_mut() {
-            cand.score = self.history.score(&cand.pose, &self.sensed, lookup, beam, extra);
+            cand.score = self.history.score(&cand.pose, &self.sensed, &m);
             cand.copies = 1;
         }
         // Best first: an insertion sort (at most SCAN_KEEP, and core's sorts
@@ -73,7 +73,7 @@ impl<const N: usize> Localizer<N> {
             }
         }
         candidates.truncate(usize::from(c.verify_keep).max(1));
-        let score = |p: &[f32; 3]| self.history.score(p, &self.sensed, lookup, beam, extra);
+        let score = |p: &[f32; 3]| self.history.score(p, &self.sensed, &m);
         // A pose's best score nearby: coordinate ascent in x, y and φ with
         // halving steps (0.12 m and 3° down to 0.03 m and 0.75°). The scan's proposals stand on the node grid and its
         // heading bins, the cluster's mean wherever its particles are: each
@@ -120,14 +120,12 @@ impl<const N: usize> Localizer<N> {
         if cluster.is_some() {
             // The kept places: this cycle's readings alone, at the refined
             // poses.
-            let now = |q: &[f32; 3]| ParticleSet::<0>::log_likelihood(q, &self.sensed, lookup, beam, extra);
+            let now = |q: &[f32; 3]| m.log_likelihood(q, &self.sensed);
             let own_now = now(&own_pose);
-            for i in 0..bank.len() {
-                let Some(p) = bank.poses_mut().nth(i) else { break };
-                let (q, _) = refine(*p, score(p));
-                *p = q;
-                bank.observe(i, own_now - now(&q));
-            }
+            bank.observe_each(|p| {
+                (*p, _) = refine(*p, score(p));
+                own_now - now(p)
+            });
             bank.retain(|h| elsewhere(&h.pose) && h.margin_lead(z) < c.bank_refute, near);
             // The best candidate elsewhere, refined, with its lead and
             // spread on the history's cycles.
@@ -135,8 +133,8 @@ impl<const N: usize> Localizer<N> {
                 (k.pose, k.score) = refine(k.pose, k.score);
                 // The spread only matters to a margin.
                 let spread2: f32 = if z > 0.0 {
-                    let ours = self.history.score_cycles(&own_pose, &self.sensed, lookup, beam, extra);
-                    let theirs = self.history.score_cycles(&k.pose, &self.sensed, lookup, beam, extra);
+                    let ours = self.history.score_cycles(&own_pose, &self.sensed, &m);
+                    let theirs = self.history.score_cycles(&k.pose, &self.sensed, &m);
                     ours.iter().zip(&theirs).map(|(a, b)| (a - b) * (a - b)).sum()
                 } else {
                     0.0
@@ -144,8 +142,7 @@ impl<const N: usize> Localizer<N> {
                 let cycles = (self.history.len().min(HISTORY_CYCLES) as u16).saturating_add(1);
                 let h = Hypothesis::new(k.pose, own - k.score, spread2, cycles);
                 // A proposal the bank has no room for still counts.
-                let known = bank.members().iter().any(|m| near(&m.pose, &h.pose));
-                if !bank.propose(h, usize::from(c.bank_keep).min(BANK), near) && !known {
+                if bank.propose(h, usize::from(c.bank_keep).min(BANK), near) == Proposal::Refused {
                     lead = lead.min(h.margin_lead(z));
                 }
             }
@@ -157,7 +154,7 @@ impl<const N: usize> Localizer<N> {
             // tracked until a moment ago).
             let x = self.ekf_at_cycle_start();
             if elsewhere(&x) {
-                let ekf = self.history.score(&x, &self.sensed, lookup, beam, extra);
+                let ekf = self.history.score(&x, &self.sensed, &m);
                 lead = lead.min(own - (ekf + c.handoff_lead_awake - c.handoff_lead));
             }
         }

@@ -30,30 +30,12 @@ pub use config::McConfig;
 pub use resample::kld_bound;
 pub use weigh::Weighed;
 
+pub use super::measure::Sensed;
+
 use super::expect::FieldLookup;
 use super::rng::Rng;
 use crate::f32math::{sin_cos, sqrt};
-use crate::referencing::{wrap, Motion, Reading};
-
-/// A reading as the particles take it: the transducer's pose in the frame
-/// of the cycle's start (x m, y m, heading rad) and what it read.
-#[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct Sensed {
-    /// The transducer's pose at its firing, in the robot's frame at the
-    /// cycle's start.
-    pub pose: [f32; 3],
-    /// The reading.
-    pub reading: Reading,
-}
-
-impl Sensed {
-    /// How many of `sensed` are usable readings (not `Invalid`). A fold
-    /// that saturates, where `count` would carry an overflow check.
-    pub(crate) fn usable(sensed: &[Sensed]) -> usize {
-        sensed.iter().filter(|r| r.reading != Reading::Invalid).fold(0usize, |n, _| n.saturating_add(1))
-    }
-}
+use crate::referencing::{wrap, Motion};
 
 /// The odometry's noise, for moving particles: variances per metre driven
 /// and per radian turned, and a floor per cycle so that particles spread

@@ -3,6 +3,7 @@
 //! below the long-term one (augmented MCL).
 
 use super::super::expect::FieldLookup;
+use super::super::measure::Measure;
 use super::super::scan::Candidate;
 use super::{McConfig, ParticleSet, Sensed};
 use crate::f32math::{exp_fast, sqrt};
@@ -160,13 +161,12 @@ impl<const N: usize> ParticleSet<N> {
         }
         // A running weighted choice (reservoir of one), with weights relative
         // to the first candidate's.
-        let extra = self.extra_var(cfg);
-        let base = Self::log_likelihood(&first, sensed, lookup, &cfg.beam, extra);
+        let m = Measure::new(lookup, &cfg.beam, self.extra_var(cfg));
+        let base = m.log_likelihood(&first, sensed);
         let (mut pick, mut total) = (first, 1.0f32);
         for _ in 1..tries {
             let p = self.candidate(sensed, lookup, cfg)?;
-            let w =
-                exp_fast(cfg.temper * (Self::log_likelihood(&p, sensed, lookup, &cfg.beam, extra) - base)).min(1e30);
+            let w = exp_fast(cfg.temper * (m.log_likelihood(&p, sensed) - base)).min(1e30);
             total += w;
             if self.rng.uniform() * total < w {
                 pick = p;
@@ -188,10 +188,10 @@ impl<const N: usize> ParticleSet<N> {
         let step = core::f32::consts::TAU / h as f32;
         let off = self.rng.uniform() * step - core::f32::consts::PI;
         let mut best = (f32::NEG_INFINITY, p[2]);
-        let extra = self.extra_var(cfg);
+        let m = Measure::new(lookup, &cfg.beam, self.extra_var(cfg));
         for b in 0..h {
             let th = off + b as f32 * step;
-            let ll = Self::log_likelihood(&[p[0], p[1], th], sensed, lookup, &cfg.beam, extra);
+            let ll = m.log_likelihood(&[p[0], p[1], th], sensed);
             if ll > best.0 {
                 best = (ll, th);
             }

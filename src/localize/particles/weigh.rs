@@ -1,11 +1,10 @@
 //! Weighing: each reading of the cycle scored at every particle by the beam
 //! model on the field, tempered so that one cycle cannot empty the set.
 
-use super::super::beam::BeamModel;
 use super::super::expect::FieldLookup;
+use super::super::measure::Measure;
 use super::{McConfig, ParticleSet, Sensed};
-use crate::f32math::{exp_fast, ln_fast, sin_cos};
-use crate::referencing::Reading;
+use crate::f32math::exp_fast;
 
 /// What weighing did.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -26,45 +25,17 @@ pub struct Weighed {
 }
 
 impl<const N: usize> ParticleSet<N> {
-    /// The sum of the log-likelihoods of `sensed` at particle pose `p`.
-    // Out of line: five callers (weighing, injection, the history, the fit
-    // monitor) would each inline a copy (flash: issue #27's budget).
-    #[inline(never)]
-    pub(crate) fn log_likelihood(
-        p: &[f32; 3],
-        sensed: &[Sensed],
-        lookup: &FieldLookup<'_, '_>,
-        beam: &BeamModel,
-        extra_var_mm2: f32,
-    ) -> f32 {
-        let (s, c) = sin_cos(p[2]);
-        let mut ll = 0.0;
-        if !lookup.is_free(p[0] * 1e3, p[1] * 1e3) {
-            ll += ln_fast(beam.off_field);
-        }
-        for r in sensed {
-            if r.reading == Reading::Invalid {
-                continue;
-            }
-            let tx = p[0] + c * r.pose[0] - s * r.pose[1];
-            let ty = p[1] + s * r.pose[0] + c * r.pose[1];
-            let e = lookup.expected(tx * 1e3, ty * 1e3, p[2] + r.pose[2]);
-            ll += ln_fast(beam.likelihood_with(r.reading, e, extra_var_mm2));
-        }
-        ll
-    }
-
     /// Weighs every particle by the readings `sensed` (transducer poses in
     /// the particles' frame) and normalises the weights.
     pub fn weigh(&mut self, sensed: &[Sensed], lookup: &FieldLookup<'_, '_>, cfg: &McConfig) -> Weighed {
-        let extra = self.extra_var(cfg);
+        let m = Measure::new(lookup, &cfg.beam, self.extra_var(cfg));
         let k = Sensed::usable(sensed);
         if self.n == 0 {
             return Weighed::default();
         }
         let mut best = f32::NEG_INFINITY;
         for (p, w) in self.pose.iter().zip(self.weight.iter_mut()).take(self.n) {
-            let ll = Self::log_likelihood(p, sensed, lookup, &cfg.beam, extra);
+            let ll = m.log_likelihood(p, sensed);
             *w = ll;
             if ll > best {
                 best = ll;
