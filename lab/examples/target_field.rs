@@ -12,7 +12,10 @@
 //! exactly and looked up in a target field of `node_mm` and `dirs` built on
 //! demand (the nearest node, the nearest heading), and the agreement is
 //! printed in `map field-check`'s terms beside the number of distinct
-//! targets seen (what an entry must index).
+//! targets seen (what an entry must index). With `AUDIBLE=1` an entry
+//! whose surface the transducer cannot hear from where it stands (the echo
+//! point outside the beam's half angle, off the edge, or out of the
+//! window's ranges) reads as nothing: a check a lookup could make.
 //!
 //! ```text
 //! cargo run --release -p echoloc-lab --example target_field -- target/loc-maps/depot.map 500 32
@@ -44,6 +47,35 @@ fn predict_at(
     predict(map, &w, params, net).ok().and_then(|(p, _)| p)
 }
 
+/// Whether a transducer at `(x, y)` mm facing `th` can hear `t` (heard
+/// from the node as the surface `id`): the echo point (the perpendicular's
+/// foot on the edge, or the point) within the beam's half angle, on the
+/// edge, and within the window's ranges.
+fn audible(map: &MapView<'_>, w: &WindowParams, t: &Target, id: (u16, u8, bool), x: f32, y: f32, th: f32) -> bool {
+    let (px, py) = (x / 1e3, y / 1e3);
+    let (fx, fy) = match *t {
+        Target::Plane { point, normal } => {
+            let d = (px - point[0]) * normal[0] + (py - point[1]) * normal[1];
+            let (fx, fy) = (px - d * normal[0], py - d * normal[1]);
+            // On the edge: the foot between its ends.
+            let Some(piece) = map.piece(id.0) else { return false };
+            let (a, b) = piece.shape.edge(usize::from(id.1));
+            let (ax, ay, bx, by) = (a.x as f32 / 1e3, a.y as f32 / 1e3, b.x as f32 / 1e3, b.y as f32 / 1e3);
+            let (ex, ey) = (bx - ax, by - ay);
+            let u = ((fx - ax) * ex + (fy - ay) * ey) / (ex * ex + ey * ey).max(1e-12);
+            if !(0.0..=1.0).contains(&u) {
+                return false;
+            }
+            (fx, fy)
+        }
+        Target::Point { point } => (point[0], point[1]),
+    };
+    let r = (fx - px).hypot(fy - py) * 1e3;
+    let off =
+        ((fy - py).atan2(fx - px) - th + std::f32::consts::PI).rem_euclid(std::f32::consts::TAU) - std::f32::consts::PI;
+    off.abs() <= w.half_angle_deg.to_radians() && r >= w.r_min_mm as f32 && r <= w.r_max_mm as f32
+}
+
 /// The range, mm, from `(x, y)` mm to `t`.
 fn range_to(t: &Target, x: f32, y: f32) -> f32 {
     let (x, y) = (x / 1e3, y / 1e3);
@@ -63,6 +95,7 @@ fn main() {
     let node_mm: f32 = args[2].parse().expect("NODE_MM");
     let dirs: u32 = args[3].parse().expect("DIRS");
     let robots: usize = args.get(4).map_or(2000, |r| r.parse().expect("ROBOTS"));
+    let audible_only = std::env::var("AUDIBLE").is_ok_and(|v| v == "1");
     let a = echoloc_lab::map::read_compiled(path).expect("a compiled map");
     let map = echoloc_lab::map::view_of(&a, path).expect("a valid map");
     let lookup = FieldLookup::new(map.field());
@@ -95,6 +128,8 @@ fn main() {
                 })
             });
             samples += 1;
+            // `AUDIBLE=1`: an entry the transducer cannot hear from where it stands says nothing.
+            let entry = entry.filter(|&(t, id)| !audible_only || audible(&map, &params.window, &t, id, tx, ty, th));
             match (exact, entry) {
                 (None, None) => both_nothing += 1,
                 (Some(_), None) => missed += 1,
