@@ -186,7 +186,7 @@ pub fn replay<const P: usize>(
 /// caller's painted stack pointer.
 #[inline(never)]
 #[allow(clippy::too_many_arguments)]
-fn run_loop<const P: usize>(
+pub fn run_loop<const P: usize>(
     bench: &Bench<'_>,
     map: &MapView<'_>,
     mounts: &[Mount],

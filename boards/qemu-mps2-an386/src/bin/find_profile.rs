@@ -9,7 +9,7 @@
 
 use cortex_m_rt::entry;
 use cortex_m_semihosting::hprintln;
-use echoloc::controller::replay::{check, localizer, run, scenario_odometry, start};
+use echoloc::controller::replay::check;
 use echoloc::credence::net::CredenceNet;
 use echoloc::localize::{Mode, Start};
 use echoloc::map::{Aligned, MapView};
@@ -17,7 +17,7 @@ use echoloc::predict::Mount;
 use echoloc::scenario::replay::Bench;
 use echoloc::scenario::Scenario;
 use qemu_mps2_an386::exit;
-use qemu_mps2_an386::replay::{setup, PARTICLES, POLL_STEP_US, TRANSDUCERS};
+use qemu_mps2_an386::replay::{run_loop, setup, PARTICLES, POLL_STEP_US, TRANSDUCERS};
 
 static DEPOT: &Aligned<[u8]> = &Aligned(*include_bytes!("../../depot.map"));
 static FIND: &[u8] = include_bytes!("../../depot-find.scn");
@@ -40,33 +40,21 @@ fn main() -> ! {
         exit(false);
     }
     let net = CredenceNet::shipped();
-    let mut loc = localizer::<PARTICLES, TRANSDUCERS>(&setup, SEED);
-    if start(&mut loc, &bench, map.field(), Some(Start::Unknown)).is_err() {
-        exit(false);
-    }
     let mut cycles = 0u32;
-    let _ = run::<_, _, 4, TRANSDUCERS, PARTICLES>(
-        &bench,
-        &map,
-        map.field(),
-        &mounts,
-        &net,
-        &setup,
-        &mut loc,
-        scenario_odometry,
-        |_, _, _, s| {
-            if let Some(e) = s.cycle_end {
-                cycles += 1;
-                if e.localizer.mode != Mode::Searching {
-                    hprintln!("FAIL: cycle {} did not end searching", cycles);
-                    exit(false);
-                }
-                if cycles == CYCLES {
-                    hprintln!("{} searching cycles", CYCLES);
-                    exit(true);
-                }
+    // The board's own loop (the main firmware's find-itself replay), left
+    // after CYCLES cycles.
+    let _ = run_loop::<PARTICLES>(&bench, &map, &mounts, &net, &setup, Some(Start::Unknown), SEED, &mut |_, ended| {
+        if let Some(mode) = ended {
+            cycles += 1;
+            if mode != Mode::Searching {
+                hprintln!("FAIL: cycle {} did not end searching", cycles);
+                exit(false);
             }
-        },
-    );
+            if cycles == CYCLES {
+                hprintln!("{} searching cycles", CYCLES);
+                exit(true);
+            }
+        }
+    });
     exit(false);
 }
