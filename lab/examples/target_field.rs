@@ -26,7 +26,7 @@ use echoloc::credence::net::CredenceNet;
 use echoloc::localize::{FieldLookup, ParticleSet, Rng};
 use echoloc::map::{MapSource, MapView};
 use echoloc::predict::{predict, predict_mount, Pose, PredictParams, Prediction, PIONEER16};
-use echoloc::referencing::model::Target;
+use echoloc::referencing::model::{range_model, MountM, Target};
 use echoloc::window::{Window, WindowParams};
 
 /// What a node hears at a heading: the target and the surface's id
@@ -74,15 +74,6 @@ fn audible(map: &MapView<'_>, w: &WindowParams, t: &Target, id: (u16, u8, bool),
     let off =
         ((fy - py).atan2(fx - px) - th + std::f32::consts::PI).rem_euclid(std::f32::consts::TAU) - std::f32::consts::PI;
     off.abs() <= w.half_angle_deg.to_radians() && r >= w.r_min_mm as f32 && r <= w.r_max_mm as f32
-}
-
-/// The range, mm, from `(x, y)` mm to `t`.
-fn range_to(t: &Target, x: f32, y: f32) -> f32 {
-    let (x, y) = (x / 1e3, y / 1e3);
-    match *t {
-        Target::Plane { point, normal } => ((x - point[0]) * normal[0] + (y - point[1]) * normal[1]).abs() * 1e3,
-        Target::Point { point } => (x - point[0]).hypot(y - point[1]) * 1e3,
-    }
 }
 
 fn main() {
@@ -137,7 +128,10 @@ fn main() {
                 (Some(e), Some((t, id))) => {
                     both_echo += 1;
                     ids.insert(id);
-                    let err = (range_to(&t, tx, ty) - e.range_mm as f32).abs();
+                    // The EKF's own range model, the transducer standing at (tx, ty).
+                    let at = [tx / 1e3, ty / 1e3, 0.0];
+                    let r = range_model(&at, MountM { x: 0.0, y: 0.0 }, &t).map_or(0.0, |(h, _)| h * 1e3);
+                    let err = (r - e.range_mm as f32).abs();
                     errors.push(err);
                     tol += usize::from(err <= e.tolerance_mm as f32);
                     same_target += usize::from(id == (e.piece, e.edge, e.case == echoloc::predict::Case::I));
