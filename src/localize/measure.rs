@@ -69,8 +69,9 @@ impl<'m> Measure<'m> {
     /// The sum of the log-likelihoods of `sensed` at pose `p` (x m, y m,
     /// φ rad; the readings' frame), with the off-field term when the pose
     /// stands where the field has no free node.
-    // Out of line: five callers (weighing, injection, the history, the fit
-    // monitor) would each inline a copy (flash: issue #27's budget).
+    // Out of line: its callers (weighing, injection, the history, the
+    // kept places' cycle, the fit monitor) would each inline a copy
+    // (flash: issue #27's budget).
     #[inline(never)]
     pub fn log_likelihood(&self, p: &[f32; 3], sensed: &[Sensed]) -> f32 {
         // Read once into locals: through `self` the loop reloaded them.
