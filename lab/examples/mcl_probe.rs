@@ -4,7 +4,8 @@
 //! poses near it; over cycles, the truth's trajectory against random
 //! trajectories carried by the same motion (docs/localization.md), and its
 //! lead over the best wrong place (a start beyond 1 m or 20°) every 10
-//! cycles (issue #36 item 1's "before").
+//! cycles and the distance travelled by then (issue #36 item 1's
+//! "before").
 //!
 //! ```text
 //! cargo run --release -p echoloc-lab --example mcl_probe -- ../shared/data/maps/depot.yaml 1 0.5
@@ -74,6 +75,8 @@ fn main() {
     });
     let mut acc_alias = 0f32;
     let temper = env("TEMPER", 1.0);
+    // The distance the truth has travelled, m (the leads' x axis in metres).
+    let (mut travelled, mut last) = (0f32, truth0);
     // Group by cycle.
     let mut c = 0;
     while c < run.cycles {
@@ -82,6 +85,8 @@ fn main() {
             break;
         }
         let t0 = recs[0].truth;
+        travelled += ((t0[0] - last[0]).powi(2) + (t0[1] - last[1]).powi(2)).sqrt();
+        last = t0;
         let sensed: Vec<Sensed> = recs
             .iter()
             .map(|r| {
@@ -178,7 +183,7 @@ fn main() {
             }
             if let Some(&k) = wrong {
                 println!(
-                    "lead after {} cycles: {:.1} nats over the best wrong place ({:.1} nats)",
+                    "lead after {} cycles: {:.1} nats over the best wrong place ({:.1} nats); travelled {travelled:.1} m",
                     c + 1,
                     acc_truth - acc[k],
                     acc[k]
