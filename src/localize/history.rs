@@ -9,10 +9,9 @@ use crate::f32math::sin_cos;
 use crate::referencing::{wrap, Reading};
 
 /// Cycles kept: the places' leads for the hand-off are summed over them
-/// (about 5.5 m of driving). Over 8 cycles the truth trails the best wrong
-/// place on half the runs at the default clutter; by 30 m it leads on
-/// every depot and bookstore run (`scripts/mcl-lead.sh`,
-/// docs/localization.md).
+/// (about 5 m of driving). Over 8 cycles the truth trails the best wrong
+/// place on half the runs at the default clutter; over 40 it leads on
+/// nearly all (`scripts/mcl-lead.sh`, docs/localization.md).
 pub const HISTORY_CYCLES: usize = 24;
 /// The newest cycles the search ranks and refines its proposals on: the
 /// whole history there costs the searching cycle 40 % more.
