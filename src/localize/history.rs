@@ -8,14 +8,8 @@ use super::measure::{Measure, Sensed};
 use crate::f32math::sin_cos;
 use crate::referencing::{wrap, Reading};
 
-/// Cycles kept: the places' leads for the hand-off are summed over them
-/// (about 5 m of driving). Over 8 cycles the truth trails the best wrong
-/// place on half the runs at the default clutter; over 40 it leads on
-/// nearly all (`scripts/mcl-lead.sh`, docs/localization.md).
-pub const HISTORY_CYCLES: usize = 24;
-/// The newest cycles the search ranks and refines its proposals on: the
-/// whole history there costs the searching cycle 40 % more.
-pub const RANK_CYCLES: usize = 8;
+/// Cycles kept.
+pub const HISTORY_CYCLES: usize = 8;
 /// Readings kept a cycle (the first ones that are not invalid).
 pub const HISTORY_READINGS: usize = 16;
 
@@ -141,13 +135,8 @@ impl History {
     /// The log-likelihood under `m` of every kept reading, and of
     /// `current`, at pose `p` (in the current cycle's start frame).
     pub fn score(&self, p: &[f32; 3], current: &[Sensed], m: &Measure<'_>) -> f32 {
-        self.score_newest(p, current, m, HISTORY_CYCLES)
-    }
-
-    /// [`History::score`] on `current` and the newest `cycles` kept cycles.
-    pub fn score_newest(&self, p: &[f32; 3], current: &[Sensed], m: &Measure<'_>, cycles: usize) -> f32 {
         let mut ll = 0.0;
-        self.each_cycle(p, current, m, cycles, |v| ll += v);
+        self.each_cycle(p, current, m, |v| ll += v);
         ll
     }
 
@@ -156,7 +145,7 @@ impl History {
     pub fn score_cycles(&self, p: &[f32; 3], current: &[Sensed], m: &Measure<'_>) -> [f32; HISTORY_CYCLES + 1] {
         let mut out = [0.0; HISTORY_CYCLES + 1];
         let mut slots = out.iter_mut();
-        self.each_cycle(p, current, m, HISTORY_CYCLES, |v| {
+        self.each_cycle(p, current, m, |v| {
             if let Some(o) = slots.next() {
                 *o = v;
             }
@@ -165,21 +154,12 @@ impl History {
     }
 
     /// Calls `f` with `current`'s log-likelihood at `p`, then each stored
-    /// cycle's among the newest `newest` (a closure, not an array: `score`
-    /// is the search's inner loop and stays what it was).
+    /// cycle's (a closure, not an array: `score` is the search's inner loop
+    /// and stays what it was).
     #[inline(always)]
-    fn each_cycle(&self, p: &[f32; 3], current: &[Sensed], m: &Measure<'_>, newest: usize, mut f: impl FnMut(f32)) {
+    fn each_cycle(&self, p: &[f32; 3], current: &[Sensed], m: &Measure<'_>, mut f: impl FnMut(f32)) {
         f(m.log_likelihood(p, current));
-        for (slot, ((cycle, &n), fr)) in
-            (0..HISTORY_CYCLES).zip(self.readings.iter().zip(&self.counts).zip(&self.frames))
-        {
-            // The slot's age, 0 for the newest (the one before `head`). Both
-            // are below HISTORY_CYCLES, so the sum never wraps: wrapping
-            // ops only spare the overflow checks.
-            let age = self.head.wrapping_add(HISTORY_CYCLES - 1).wrapping_sub(slot) % HISTORY_CYCLES;
-            if age >= newest {
-                continue;
-            }
+        for ((cycle, &n), fr) in self.readings.iter().zip(&self.counts).zip(&self.frames) {
             let mut rs = [Sensed { pose: [0.0; 3], reading: Reading::Invalid }; HISTORY_READINGS];
             let (s, c) = sin_cos(fr[2]);
             for (d, k) in rs.iter_mut().zip(cycle.iter().take(usize::from(n))) {
@@ -252,42 +232,5 @@ mod tests {
             }
         }
         assert_eq!(found, kept);
-    }
-
-    /// `score_newest(k)` sums exactly the newest `k` cycles' per-cycle
-    /// scores (and the current one's), counted by age by hand: after more
-    /// cycles than are kept, so the ring has wrapped.
-    #[test]
-    fn the_newest_cycles_are_the_last_pushed() {
-        use crate::localize::{BeamModel, FieldLookup};
-        use crate::map::FieldView;
-        let field = FieldView::EMPTY;
-        let lookup = FieldLookup::new(&field);
-        let beam = BeamModel::DEFAULT;
-        let m = Measure::new(&lookup, &beam, 0.0);
-        let mut h = History::new();
-        // Cycle i holds i % 5 + 1 readings, so each cycle scores differently
-        // (off the empty field every reading scores the same).
-        let total = HISTORY_CYCLES + 5;
-        let mut per_cycle = std::vec::Vec::new();
-        extern crate std;
-        let p = [1.0f32, 2.0, 0.3];
-        for i in 0..total {
-            let n = i % 5 + 1;
-            let sensed: std::vec::Vec<Sensed> =
-                (0..n).map(|_| Sensed { pose: [0.1, 0.0, 0.0], reading: Reading::Echo { range_mm: 1000 } }).collect();
-            per_cycle.push(m.log_likelihood(&p, &sensed) - m.log_likelihood(&p, &[]));
-            h.push(&sensed);
-        }
-        let current = [Sensed { pose: [0.0; 3], reading: Reading::NoEcho }];
-        let now = m.log_likelihood(&p, &current);
-        let off = m.log_likelihood(&p, &[]);
-        for k in [0, 1, RANK_CYCLES, HISTORY_CYCLES - 1, HISTORY_CYCLES, HISTORY_CYCLES + 3] {
-            // Each kept cycle's score carries the off-field term once more.
-            let want: f32 = now + per_cycle.iter().rev().take(k.min(HISTORY_CYCLES)).map(|v| v + off).sum::<f32>();
-            let got = h.score_newest(&p, &current, &m, k);
-            assert!((got - want).abs() < 1e-3 * want.abs().max(1.0), "k {k}: {got} vs {want}");
-        }
-        assert_eq!(h.score(&p, &current, &m), h.score_newest(&p, &current, &m, HISTORY_CYCLES));
     }
 }

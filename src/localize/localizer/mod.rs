@@ -91,7 +91,7 @@ pub struct Localizer<const N: usize> {
     /// The places found away from the cluster (at the cycle's start), each
     /// with the cluster's lead over it summed over every cycle since it was
     /// found: kept from cycle to cycle, because the sweep visits a node
-    /// only every few cycles and the history holds 24, and an alias that
+    /// only every few cycles and the history holds 8, and an alias that
     /// only a feature driven past long ago tells apart must neither count
     /// as beaten when it is not proposed nor draw level when the feature
     /// leaves the history.

@@ -3,7 +3,7 @@
 //! the history's readings; the lead the hand-off waits for.
 
 use super::super::expect::FieldLookup;
-use super::super::history::{HISTORY_CYCLES, RANK_CYCLES};
+use super::super::history::HISTORY_CYCLES;
 use super::super::hypotheses::{Bank, Hypothesis, Proposal, BANK};
 use super::super::measure::Measure;
 use super::super::particles::Cluster;
@@ -52,12 +52,11 @@ impl<const N: usize> Localizer<N> {
             return if cluster.is_some() { f32::INFINITY } else { f32::NEG_INFINITY };
         }
         let m = Measure::new(lookup, &c.mcl.beam, c.verify_sigma_mm * c.verify_sigma_mm);
-        // Every candidate scored on the newest cycles and this one; the best
-        // few go on (best first), the first of them in number if it beats
-        // the heaviest cluster by the margin there.
-        let recent = |p: &[f32; 3]| self.history.score_newest(p, &self.sensed, &m, RANK_CYCLES);
+        // Every candidate scored on the history and this cycle; the best few
+        // go on (best first), the first of them in number if it beats the
+        // heaviest cluster by the margin.
         for cand in candidates.iter_mut() {
-            cand.score = recent(&cand.pose);
+            cand.score = self.history.score(&cand.pose, &self.sensed, &m);
             cand.copies = 1;
         }
         // Best first: an insertion sort (at most SCAN_KEEP, and core's sorts
@@ -74,9 +73,7 @@ impl<const N: usize> Localizer<N> {
             }
         }
         candidates.truncate(usize::from(c.verify_keep).max(1));
-        // The leads the hand-off counts are on the whole history.
-        let whole = |p: &[f32; 3]| self.history.score(p, &self.sensed, &m);
-        let score = recent;
+        let score = |p: &[f32; 3]| self.history.score(p, &self.sensed, &m);
         // A pose's best score nearby: coordinate ascent in x, y and φ with
         // halving steps (0.12 m and 3° down to 0.03 m and 0.75°). The scan's proposals stand on the node grid and its
         // heading bins, the cluster's mean wherever its particles are: each
@@ -109,7 +106,6 @@ impl<const N: usize> Localizer<N> {
             Some(k) => refine(k.mean, score(&k.mean)),
             None => ([0.0; 3], f32::NEG_INFINITY),
         };
-        let own_whole = if cluster.is_some() { whole(&own_pose) } else { f32::NEG_INFINITY };
         let elsewhere = |p: &[f32; 3]| {
             cluster.is_none_or(|k| {
                 dist2(p, &k.mean) > SAME_PLACE_M * SAME_PLACE_M || heading_apart(p, &k.mean) > SAME_PLACE_RAD
@@ -135,7 +131,6 @@ impl<const N: usize> Localizer<N> {
             // spread on the history's cycles.
             if let Some(k) = candidates.iter_mut().find(|k| elsewhere(&k.pose)) {
                 (k.pose, k.score) = refine(k.pose, k.score);
-                let theirs_whole = whole(&k.pose);
                 // The spread only matters to a margin.
                 let spread2: f32 = if z > 0.0 {
                     let ours = self.history.score_cycles(&own_pose, &self.sensed, &m);
@@ -145,7 +140,7 @@ impl<const N: usize> Localizer<N> {
                     0.0
                 };
                 let cycles = (self.history.len().min(HISTORY_CYCLES) as u16).saturating_add(1);
-                let h = Hypothesis::new(k.pose, own_whole - theirs_whole, spread2, cycles);
+                let h = Hypothesis::new(k.pose, own - k.score, spread2, cycles);
                 // A proposal the bank has no room for still counts.
                 if bank.propose(h, usize::from(c.bank_keep).min(BANK), near) == Proposal::Refused {
                     lead = lead.min(h.margin_lead(z));
@@ -159,8 +154,8 @@ impl<const N: usize> Localizer<N> {
             // tracked until a moment ago).
             let x = self.ekf_at_cycle_start();
             if elsewhere(&x) {
-                let ekf = whole(&x);
-                lead = lead.min(own_whole - (ekf + c.handoff_lead_awake - c.handoff_lead));
+                let ekf = self.history.score(&x, &self.sensed, &m);
+                lead = lead.min(own - (ekf + c.handoff_lead_awake - c.handoff_lead));
             }
         }
         let share = ((c.verified_share * self.particles.len() as f32) as u16).max(1);
