@@ -119,20 +119,28 @@ pub fn report(t: &Trace, kidnaps: &[f64]) -> Value {
 }
 
 /// The per-cycle trace as CSV (issue #27's header): the mode, the estimate
-/// and its σ, and the reference where known.
+/// and its σ, the reference where known, and while searching or lost the
+/// heaviest cluster's lead over the best place elsewhere and its weight
+/// (what the hand-off waits for).
 pub fn trace_csv(t: &Trace) -> String {
     let mut out = String::from(
-        "time_s,mode,x_m,y_m,theta_rad,sigma_x_m,sigma_y_m,sigma_theta_rad,ref_x_m,ref_y_m,ref_theta_rad,particles\n",
+        "time_s,mode,x_m,y_m,theta_rad,sigma_x_m,sigma_y_m,sigma_theta_rad,ref_x_m,ref_y_m,ref_theta_rad,particles,lead_nats,cluster_weight\n",
     );
     for r in &t.cycles {
         let p = r.covariance;
         let sd = |i: usize| f64::from(p[i][i]).max(0.0).sqrt();
+        // What the hand-off waits for, while the particles search.
+        let (lead, weight) = if r.mode == Mode::Tracking {
+            (String::new(), String::new())
+        } else {
+            (format!("{:.1}", r.lead), format!("{:.3}", r.cluster_weight))
+        };
         let (rx, ry, rt) = match r.truth {
             Some(t) => (format!("{:.6}", t[0]), format!("{:.6}", t[1]), format!("{:.6}", t[2])),
             None => (String::new(), String::new(), String::new()),
         };
         out.push_str(&format!(
-            "{:.6},{},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{rx},{ry},{rt},{}\n",
+            "{:.6},{},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{rx},{ry},{rt},{},{lead},{weight}\n",
             r.time_s,
             r.mode.name(),
             r.state[0],
