@@ -133,6 +133,7 @@ pub fn check_framing(bytes: &[u8]) -> Result<(), String> {
         if op == 0x02 {
             return Ok(());
         }
+        check_fields(op, &bytes[body..end]).map_err(|e| format!("the {} record at byte {at}: {e}", record_name(op)))?;
         if op == 0x06 {
             let chunk = &bytes[body..end];
             let clen = u32_at(chunk, 28).map(|v| v as usize);
@@ -157,6 +158,10 @@ pub fn check_framing(bytes: &[u8]) -> Result<(), String> {
                             body + start + r
                         ));
                     };
+                    let op = records[r];
+                    check_fields(op, &records[r + 9..next]).map_err(|e| {
+                        format!("chunk at byte {at}: the {} record at byte {}: {e}", record_name(op), body + start + r)
+                    })?;
                     r = next;
                 }
             }
@@ -165,6 +170,77 @@ pub fn check_framing(bytes: &[u8]) -> Result<(), String> {
     }
     if at < bytes.len() {
         return Err(format!("the file ends inside the record at byte {at}"));
+    }
+    Ok(())
+}
+
+/// A field of an MCAP record's body, as the specification lays it out.
+#[derive(Clone, Copy)]
+enum Field {
+    /// So many bytes.
+    Fixed(usize),
+    /// A `u32` length and that many bytes (a string, or bytes).
+    Prefixed32,
+    /// A `u64` length and that many bytes.
+    Prefixed64,
+    /// A `u32` length and that many bytes of string pairs.
+    StringMap,
+    /// The rest of the body.
+    Rest,
+}
+
+/// Checks that every length-prefixed field of an MCAP record's body
+/// (`op`'s layout in the specification) lies within the body. (`mcap`
+/// 0.26 allocates a string or a map by its stated length before reading
+/// it: found by the `bag` fuzz target, a Header whose profile claimed
+/// 4 GiB in a 26-byte record made it ask for 4 GiB.) Unknown opcodes and
+/// a chunk's records (checked by the caller) are left alone.
+fn check_fields(op: u8, body: &[u8]) -> Result<(), String> {
+    use Field::{Fixed, Prefixed32, Prefixed64, Rest, StringMap};
+    let layout: &[Field] = match op {
+        0x01 => &[Prefixed32, Prefixed32],
+        0x03 => &[Fixed(2), Prefixed32, Prefixed32, Prefixed32],
+        0x04 => &[Fixed(4), Prefixed32, Prefixed32, StringMap],
+        0x06 => &[Fixed(28), Prefixed32, Prefixed64],
+        0x07 => &[Fixed(2), Prefixed32],
+        0x08 => &[Fixed(32), Prefixed32, Fixed(8), Prefixed32, Fixed(16)],
+        0x09 => &[Fixed(16), Prefixed32, Prefixed32, Prefixed64, Fixed(4)],
+        0x0A => &[Fixed(40), Prefixed32, Prefixed32],
+        0x0B => &[Fixed(42), Prefixed32],
+        0x0C => &[Prefixed32, StringMap],
+        0x0D => &[Fixed(16), Prefixed32],
+        _ => &[Rest],
+    };
+    let mut at = 0usize;
+    for (i, f) in layout.iter().enumerate() {
+        let (width, len) = match f {
+            Fixed(n) => (0, Some(*n as u64)),
+            Prefixed32 | StringMap => {
+                (4, body.get(at..at + 4).map(|b| u64::from(u32::from_le_bytes([b[0], b[1], b[2], b[3]]))))
+            }
+            Prefixed64 => (8, body.get(at..at + 8).map(|b| u64::from_le_bytes(b.try_into().unwrap_or([0xFF; 8])))),
+            Rest => return Ok(()),
+        };
+        let end = len
+            .and_then(|l| usize::try_from(l).ok())
+            .and_then(|l| (at + width).checked_add(l))
+            .filter(|&e| e <= body.len());
+        let Some(end) = end else {
+            return Err(format!("its field {} claims {} bytes, past the record's end", i + 1, len.unwrap_or(u64::MAX)));
+        };
+        if matches!(f, StringMap) {
+            // Pairs of strings, each within the map.
+            let map = &body[at + 4..end];
+            let mut m = 0usize;
+            while m < map.len() {
+                let n = map.get(m..m + 4).map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]) as usize);
+                let Some(next) = n.and_then(|n| (m + 4).checked_add(n)).filter(|&e| e <= map.len()) else {
+                    return Err(format!("a string of its field {} runs past the field's end", i + 1));
+                };
+                m = next;
+            }
+        }
+        at = end;
     }
     Ok(())
 }
@@ -285,6 +361,46 @@ mod tests {
             "{e}"
         );
         assert!(check_framing(b"not mcap").unwrap_err().contains("no magic"));
+        assert!(check_framing(&good).is_ok());
         assert!(check_framing(&good[..good.len() - 30]).is_err(), "a file cut in its summary");
+    }
+
+    /// The `bag` fuzz target's second find: a Header (the first record)
+    /// whose profile string claims 4 GiB is refused before `mcap` allocates
+    /// it; so is every record's string that runs past its record.
+    #[test]
+    fn a_string_longer_than_its_record_is_refused() {
+        let good = small();
+        assert_eq!(good[8], 0x01, "the first record is the Header");
+        let mut bad = good.clone();
+        bad[17..21].copy_from_slice(&0xFFFF_0004u32.to_le_bytes());
+        let e = read_bytes(&bad, Path::new("bad.mcap"), &mut Messages::default()).unwrap_err().to_string();
+        assert!(e.contains("the header record at byte 8: its field 1 claims 4294901764 bytes"), "{e}");
+        // Every record of a good file passes, and one byte more in any
+        // record's first length-prefixed field is refused.
+        let mut at = 8;
+        let mut seen = 0;
+        while good[at] != 0x02 {
+            let len = u64::from_le_bytes(good[at + 1..at + 9].try_into().unwrap()) as usize;
+            let body = &good[at + 9..at + 9 + len];
+            assert!(check_fields(good[at], body).is_ok(), "record {:#x} at {at}", good[at]);
+            let first = match good[at] {
+                0x01 | 0x0C => Some(0),
+                0x03 | 0x07 => Some(2),
+                0x04 => Some(4),
+                0x0D => Some(16),
+                _ => None,
+            };
+            if let Some(f) = first {
+                let mut b = body.to_vec();
+                let n = u32::from_le_bytes(b[f..f + 4].try_into().unwrap());
+                let past = (len - f - 4) as u32 + 1;
+                b[f..f + 4].copy_from_slice(&past.max(n + 1).to_le_bytes());
+                assert!(check_fields(good[at], &b).is_err(), "record {:#x} at {at}", good[at]);
+                seen += 1;
+            }
+            at += 9 + len;
+        }
+        assert!(seen >= 2, "{seen}");
     }
 }
