@@ -112,8 +112,6 @@ pub fn read_types(files: &[PathBuf], wanted: &[&str]) -> Result<Messages, BagErr
 /// underflows there, a panic with overflow checks, a misread without.)
 pub fn check_framing(bytes: &[u8]) -> Result<(), String> {
     const MAGIC: &[u8] = b"\x89MCAP0\r\n";
-    let u64_at = |b: &[u8], at: usize| b.get(at..at + 8).map(|s| u64::from_le_bytes(s.try_into().unwrap_or([0; 8])));
-    let u32_at = |b: &[u8], at: usize| b.get(at..at + 4).map(|s| u32::from_le_bytes(s.try_into().unwrap_or([0; 4])));
     if bytes.len() < MAGIC.len() || &bytes[..MAGIC.len()] != MAGIC {
         return Err("not an MCAP file (no magic bytes)".into());
     }
@@ -158,9 +156,10 @@ pub fn check_framing(bytes: &[u8]) -> Result<(), String> {
                             body + start + r
                         ));
                     };
-                    let op = records[r];
-                    check_fields(op, &records[r + 9..next]).map_err(|e| {
-                        format!("chunk at byte {at}: the {} record at byte {}: {e}", record_name(op), body + start + r)
+                    let inner_op = records[r];
+                    check_fields(inner_op, &records[r + 9..next]).map_err(|e| {
+                        let name = record_name(inner_op);
+                        format!("chunk at byte {at}: the {name} record at byte {}: {e}", body + start + r)
                     })?;
                     r = next;
                 }
@@ -172,6 +171,16 @@ pub fn check_framing(bytes: &[u8]) -> Result<(), String> {
         return Err(format!("the file ends inside the record at byte {at}"));
     }
     Ok(())
+}
+
+/// The little-endian `u64` at `at` in `b`, if `b` holds it.
+fn u64_at(b: &[u8], at: usize) -> Option<u64> {
+    b.get(at..at.checked_add(8)?).map(|s| u64::from_le_bytes(s.try_into().unwrap_or([0; 8])))
+}
+
+/// The little-endian `u32` at `at` in `b`, if `b` holds it.
+fn u32_at(b: &[u8], at: usize) -> Option<u32> {
+    b.get(at..at.checked_add(4)?).map(|s| u32::from_le_bytes(s.try_into().unwrap_or([0; 4])))
 }
 
 /// A field of an MCAP record's body, as the specification lays it out.
@@ -215,10 +224,8 @@ fn check_fields(op: u8, body: &[u8]) -> Result<(), String> {
     for (i, f) in layout.iter().enumerate() {
         let (width, len) = match f {
             Fixed(n) => (0, Some(*n as u64)),
-            Prefixed32 | StringMap => {
-                (4, body.get(at..at + 4).map(|b| u64::from(u32::from_le_bytes([b[0], b[1], b[2], b[3]]))))
-            }
-            Prefixed64 => (8, body.get(at..at + 8).map(|b| u64::from_le_bytes(b.try_into().unwrap_or([0xFF; 8])))),
+            Prefixed32 | StringMap => (4, u32_at(body, at).map(u64::from)),
+            Prefixed64 => (8, u64_at(body, at)),
             Rest => return Ok(()),
         };
         let end = len
@@ -233,7 +240,7 @@ fn check_fields(op: u8, body: &[u8]) -> Result<(), String> {
             let map = &body[at + 4..end];
             let mut m = 0usize;
             while m < map.len() {
-                let n = map.get(m..m + 4).map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]) as usize);
+                let n = u32_at(map, m).map(|n| n as usize);
                 let Some(next) = n.and_then(|n| (m + 4).checked_add(n)).filter(|&e| e <= map.len()) else {
                     return Err(format!("a string of its field {} runs past the field's end", i + 1));
                 };
