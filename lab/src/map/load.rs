@@ -106,6 +106,11 @@ pub struct GridArgs {
     /// `map import --face-lobe-deg`.
     #[arg(long = "face-lobe-deg")]
     pub face_lobe_deg: Option<f32>,
+    /// A .geojson map without `free` polygons: gaps in the walls up to this
+    /// wide, mm, count as closed when finding its free space: `map import --door-mm`.
+    #[arg(long = "door-mm", default_value_t = super::free_space::DEFAULT_DOOR_MM,
+          value_parser = clap::value_parser!(u32).range(0..=i64::from(super::free_space::MAX_DOOR_MM)))]
+    pub door_mm: u32,
 }
 
 impl GridArgs {
@@ -115,6 +120,7 @@ impl GridArgs {
         o.import.walls = self.walls;
         o.import.line_tolerance_mm = self.line_tolerance_mm;
         o.import.face_lobe_deg = self.face_lobe_deg;
+        o.import.door_mm = self.door_mm;
         if !field {
             o.import.field = None;
         }

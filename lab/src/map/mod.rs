@@ -98,6 +98,12 @@ pub enum MapCmd {
         /// No localization field (a smaller blob that cannot localize globally).
         #[arg(long = "no-field")]
         no_field: bool,
+        /// GeoJSON maps: gaps in the walls up to this wide, mm, count as
+        /// closed when finding the building's free space (doorways, an
+        /// open entrance; 0: only the walls close; docs/maps.md).
+        #[arg(long = "door-mm", default_value_t = free_space::DEFAULT_DOOR_MM,
+              value_parser = clap::value_parser!(u32).range(0..=i64::from(free_space::MAX_DOOR_MM)))]
+        door_mm: u32,
     },
     /// Compare a compiled map's localization field with the exact prediction
     /// at random poses of the Pioneer ring over its free space.
@@ -246,6 +252,10 @@ pub struct ImportOptions {
     /// The localization field (`None`: a blob without one, which cannot
     /// localize globally).
     pub field: Option<FieldOptions>,
+    /// GeoJSON maps without `free` polygons: gaps in the walls up to this
+    /// wide, mm, count as closed when finding what the walls enclose
+    /// ([`free_space`]).
+    pub door_mm: u32,
 }
 
 impl Default for ImportOptions {
@@ -257,6 +267,7 @@ impl Default for ImportOptions {
             line_tolerance_mm: 0,
             face_lobe_deg: None,
             field: Some(FieldOptions::default()),
+            door_mm: free_space::DEFAULT_DOOR_MM,
         }
     }
 }
@@ -276,7 +287,7 @@ pub fn compile_source(
         // Found when the field first asks, after the map was built (and
         // checked against the compiler's capacity).
         let space = std::sync::OnceLock::new();
-        let of = || free_space::FreeSpace::of(&src.shapes, free);
+        let of = || free_space::FreeSpace::of(&src.shapes, free, opt.door_mm);
         let inside = |x: f64, y: f64| space.get_or_init(of).contains(x, y);
         let known: &(dyn Fn(f64, f64) -> bool + Sync) = &inside;
         let (blob, mut summary) =
@@ -284,11 +295,37 @@ pub fn compile_source(
         if field.is_some() && !src.shapes.is_empty() {
             summary.extra.insert("free_space".into(), space.get_or_init(of).summary());
         }
-        return Ok((blob, summary));
+        return refuse_no_free_node(blob, summary);
     }
     let known = src.grid.as_ref().map(|g| move |x: f64, y: f64| g.known_free_at(x, y));
     let known_ref = known.as_ref().map(|f| f as &(dyn Fn(f64, f64) -> bool + Sync));
-    build_map_with(&src.shapes, buffer_mm, cell_mm, field.as_ref().map(|f| (f, known_ref)))
+    let (blob, summary) = build_map_with(&src.shapes, buffer_mm, cell_mm, field.as_ref().map(|f| (f, known_ref)))?;
+    refuse_no_free_node(blob, summary)
+}
+
+/// A map compiled with a field that has no free node cannot find itself:
+/// refused here, with what its free space was, rather than at a replay's
+/// start.
+fn refuse_no_free_node(blob: Vec<u8>, summary: MapSummary) -> Result<(Vec<u8>, MapSummary), String> {
+    let Some(field) = summary.extra.get("field") else { return Ok((blob, summary)) };
+    if field["free_nodes"].as_u64() != Some(0) {
+        return Ok((blob, summary));
+    }
+    let space = match summary.extra.get("free_space") {
+        Some(fs) if fs["from"] == "enclosed by the walls" => format!(
+            "what the walls enclose ({} m² of their {} m² box, gaps up to {} mm closed)",
+            fs["enclosed_m2"], fs["walls_box_m2"], fs["door_mm"]
+        ),
+        Some(fs) if fs["from"] == "free polygons" => "the map's `free` polygons".into(),
+        Some(_) => "the obstacles' bounding box".into(),
+        None => "the cells the grid knows to be free".into(),
+    };
+    Err(format!(
+        "the localization field has no free node: no node of its free space, {space}, is {} mm clear of every \
+         obstacle (--field-clearance-mm); give a larger --door-mm or a `free` polygon (GeoJSON), a smaller \
+         --field-clearance-mm, or --no-field",
+        field["clearance_mm"]
+    ))
 }
 
 /// The face lobe `opt` asks for: given, or a real building's with straight walls.
@@ -362,6 +399,7 @@ pub fn run(cmd: MapCmd) -> Result<String, LabError> {
             field_fallback_deg,
             face_lobe_deg,
             no_field,
+            door_mm,
         } => {
             let field = FieldOptions {
                 node_mm: field_node_mm,
@@ -379,6 +417,7 @@ pub fn run(cmd: MapCmd) -> Result<String, LabError> {
                 line_tolerance_mm,
                 face_lobe_deg,
                 field: (!no_field).then_some(field),
+                door_mm,
             };
             if let Some(d) = face_lobe_deg {
                 FieldOptions { delta_max_deg: d, ..field }
@@ -395,7 +434,10 @@ pub fn run(cmd: MapCmd) -> Result<String, LabError> {
                     let aligned = AlignedBytes::new(&blob);
                     let m = MapView::new(aligned.bytes())
                         .map_err(|e| LabError(format!("{}: the new blob does not validate: {e:?}", out.display())))?;
-                    Some(render::preview_as(&m, src.grid.as_ref(), unknown, Format::of(p)).map_err(LabError)?)
+                    // A drawing's free space is the import's own finding: shown; a
+                    // grid shows its own.
+                    let free = if src.grid.is_none() { render::free_nodes(&m) } else { Vec::new() };
+                    Some(render::preview_as(&m, src.grid.as_ref(), unknown, &free, Format::of(p)).map_err(LabError)?)
                 }
                 None => None,
             };
@@ -465,7 +507,7 @@ pub fn run(cmd: MapCmd) -> Result<String, LabError> {
             let a = read_compiled(&map)?;
             let m = view_of(&a, &map)?;
             let grid = grid.map(|g| ros::load(&g)).transpose()?;
-            let png = render::preview_as(&m, grid.as_ref(), unknown, Format::of(&out)).map_err(LabError)?;
+            let png = render::preview_as(&m, grid.as_ref(), unknown, &[], Format::of(&out)).map_err(LabError)?;
             write_atomically(&out, &png)?;
             Ok(serde_json::json!({ "out": out.display().to_string(), "bytes": png.len() }).to_string())
         }

@@ -65,6 +65,7 @@ const PIECE_FILL: [u8; 3] = [255, 120, 0];
 const PIECE_EDGE: [u8; 3] = [130, 0, 0];
 const OUTLINE: [u8; 3] = [0, 90, 220];
 const BUFFER: [u8; 3] = [150, 220, 60];
+const FREE: [u8; 3] = [0, 170, 200];
 
 /// A map chart: map coordinates in metres, x right, y up, equal scale.
 pub type MapChart<'a, DB> = ChartContext<'a, DB, Cartesian2d<RangedCoordf64, RangedCoordf64>>;
@@ -241,8 +242,8 @@ impl<'a, M: MapSource + ?Sized> MapLayers<'a, M> {
     }
 }
 
-/// The preview figure.
-struct Preview<'a, M: MapSource + ?Sized>(MapLayers<'a, M>, (u32, u32, u32, u32));
+/// The preview figure: the layers, its size, the field's free nodes (m).
+struct Preview<'a, M: MapSource + ?Sized>(MapLayers<'a, M>, (u32, u32, u32, u32), Vec<(f64, f64)>);
 
 impl<M: MapSource + ?Sized> Figure for Preview<'_, M> {
     fn size(&self) -> (u32, u32) {
@@ -251,8 +252,13 @@ impl<M: MapSource + ?Sized> Figure for Preview<'_, M> {
 
     fn draw<DB: DrawingBackend>(&self, root: &Root<DB>) -> Result<(), String> {
         let (plot, side) = root.split_horizontally(self.1 .0 - LEGEND_W);
-        self.0.chart(&plot, "Map: convex pieces, buffers and outlines")?;
-        legend(&side.margin(60, 0, 0, 0), &self.0.legend(), false)
+        let mut chart = self.0.chart(&plot, "Map: convex pieces, buffers and outlines")?;
+        let mut keys = self.0.legend();
+        if !self.2.is_empty() {
+            chart.draw_series(self.2.iter().map(|&p| Circle::new(p, 2, rgb(FREE).filled()))).map_err(err)?;
+            keys.push(("free field nodes", rgb(FREE)));
+        }
+        legend(&side.margin(60, 0, 0, 0), &keys, false)
     }
 }
 
@@ -264,17 +270,29 @@ const LEGEND_W: u32 = 220;
 /// (blue: edges that no other piece of the obstacle shares). Without a grid
 /// the map's own bounds, with a 1 m margin, on white. A PNG.
 pub fn preview<M: MapSource + ?Sized>(m: &M, grid: Option<&Grid>, unknown: Unknown) -> Vec<u8> {
-    preview_as(m, grid, unknown, Format::Png).unwrap_or_default()
+    preview_as(m, grid, unknown, &[], Format::Png).unwrap_or_default()
 }
 
-/// [`preview`] as PNG or SVG.
+/// [`preview`] as PNG or SVG, with the localization field's free nodes
+/// (`free`, metres: where particles may be drawn) as dots.
 pub fn preview_as<M: MapSource + ?Sized>(
     m: &M,
     grid: Option<&Grid>,
     unknown: Unknown,
+    free: &[(f64, f64)],
     format: Format,
 ) -> Result<Vec<u8>, String> {
     let layers = MapLayers::new(m, grid, unknown);
     let size = layers.size(1300, LEGEND_W);
-    encode(&Preview(layers, size), format)
+    encode(&Preview(layers, size, free.to_vec()), format)
+}
+
+/// The free nodes of a compiled map's localization field, metres.
+pub fn free_nodes(m: &echoloc::map::MapView<'_>) -> Vec<(f64, f64)> {
+    let f = m.field();
+    (0..f.nodes())
+        .filter(|&n| f.is_free(n))
+        .filter_map(|n| f.position_mm(n))
+        .map(|(x, y)| (f64::from(x) / 1e3, f64::from(y) / 1e3))
+        .collect()
 }
