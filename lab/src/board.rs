@@ -58,6 +58,11 @@ pub struct BoardRun {
     pub heading_rmse_deg: Option<f64>,
     /// Readings the loop took.
     pub readings: Option<u64>,
+    /// Of them: the driver's invalid readings (untimed, faults), and the
+    /// EKF's accepted and gated ones.
+    pub invalid: Option<u64>,
+    pub ekf_accepted: Option<u64>,
+    pub ekf_gated: Option<u64>,
     /// Where the map came from.
     pub map_line: Option<String>,
     /// Every line the firmware printed.
@@ -86,7 +91,14 @@ pub fn parse_console(out: &str, exit_code: Option<i32>) -> BoardRun {
             }
         } else if let Some(rest) = l.strip_prefix("loop: ") {
             if rest.contains("readings in") {
-                r.readings = numbers(rest).first().map(|&v| v as u64);
+                // N readings in C cycles: E echoes (U not confirmed by
+                // EERUF), S no echo, I invalid; EKF accepted A, gated G; …
+                let n = numbers(rest);
+                r.readings = n.first().map(|&v| v as u64);
+                if n.len() >= 8 && rest.contains("invalid; EKF accepted") {
+                    (r.invalid, r.ekf_accepted, r.ekf_gated) =
+                        (Some(n[5] as u64), Some(n[6] as u64), Some(n[7] as u64));
+                }
             }
         } else if l.starts_with("map: ") {
             r.map_line = Some(l.to_string());
@@ -112,6 +124,11 @@ pub fn board_cmd(a: &BoardArgs) -> Result<String, LabError> {
             mounts.len()
         )));
     }
+    // A recording stopped mid-ring: its last, partial, ring dropped.
+    let partial = crate::log::drop_partial_last_ring(&mut log, mounts.len());
+    if let Some(p) = partial {
+        eprintln!("echoloc-lab: note: {}: {}", source.display(), p.note(mounts.len()));
+    }
     // What the board's driver could not have reported, as it would report
     // it: the host replays the same, so that the figures compare.
     let unreportable = crate::scenario::as_the_driver_reports(&mut log, mounts.len(), &a.unreportable)
@@ -124,8 +141,10 @@ pub fn board_cmd(a: &BoardArgs) -> Result<String, LabError> {
     let mut scn = Vec::new();
     echoloc::scenario::write(&header, &mounts, &records, |b| scn.extend_from_slice(b))
         .map_err(|e| LabError(format!("the scenario: {e}")))?;
-    // The host's replay of the same log.
-    let steps = steps_of_log(&log);
+    // The host's replay of the readings as the board's driver takes them:
+    // in its firing order, at its ranges (the EKF's path depends on both).
+    let fired = crate::scenario::as_the_board_reads(&log, mounts.len()).map_err(LabError)?;
+    let steps = steps_of_log(&fired);
     let trace = filters::run(&map, map.field(), &mounts, &start(&log, given), &steps, &mut |_| {})
         .map_err(|e| LabError(format!("{}: {e}", source.display())))?;
     let host = report(&trace, None);
@@ -171,17 +190,23 @@ pub fn board_cmd(a: &BoardArgs) -> Result<String, LabError> {
         "map": {"path": a.input.map.display().to_string(), "crc": format!("{crc:#010x}"), "bytes": blob.len()},
         "scenario": {"records": records.len(), "bytes": scn.len(), "cycles": records.last().map_or(0, |r| r.cycle + 1)},
         "unreportable": unreportable.json(),
+        "partial_last_ring": partial.map(|p| p.json()),
         "host": {
             "final_pose": hp.map(r6),
             "position_rmse_m": host["ekf"]["position_rmse_m"],
             "heading_rmse_deg": host["ekf"]["heading_rmse_deg"],
             "readings": host["readings"],
+            "ekf_accepted": host["ekf"]["accepted"],
+            "ekf_gated": host["ekf"]["gated"],
         },
         "board": {
             "final_pose": bp,
             "position_rmse_m": b.position_rmse_m,
             "heading_rmse_deg": b.heading_rmse_deg,
             "readings": b.readings,
+            "invalid": b.invalid,
+            "ekf_accepted": b.ekf_accepted,
+            "ekf_gated": b.ekf_gated,
             "exit_code": b.exit_code,
             "map": b.map_line,
         },
@@ -203,5 +228,6 @@ mod tests {
         assert_eq!(r.final_pose, Some([-1.25, 3.5, -0.25]));
         assert_eq!((r.position_rmse_m, r.heading_rmse_deg, r.readings), (Some(0.0373), Some(0.512), Some(2272)));
         assert!(r.map_line.unwrap().contains("from the partition"));
+        assert_eq!((r.invalid, r.ekf_accepted, r.ekf_gated), (Some(0), Some(700), Some(30)));
     }
 }

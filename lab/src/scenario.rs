@@ -214,6 +214,10 @@ fn convert(
     let given = a.initial_pose.as_deref().map(|s| parse_pose(s, "--initial-pose")).transpose()?;
     let mounts = ring_mounts(&a.ring)?;
     let mut log = crate::log::read_file(log_path, mounts.len())?;
+    let partial = crate::log::drop_partial_last_ring(&mut log, mounts.len());
+    if let Some(p) = partial {
+        eprintln!("echoloc-lab: note: {}: {}", log_path.display(), p.note(mounts.len()));
+    }
     let unreportable = as_the_driver_reports(&mut log, mounts.len(), &a.unreportable)
         .map_err(|e| LabError(format!("{}: {e}", log_path.display())))?;
     let loaded = load_map_with_field(map, a.buffer_mm)?;
@@ -244,18 +248,49 @@ fn convert(
         "bounds": if bounded { json!([header.bound_position_m, header.bound_heading_deg]) } else { json!(null) },
         "start": header.start,
         "unreportable": unreportable.json(),
+        "partial_last_ring": partial.map(|p| p.json()),
     })
     .to_string())
 }
 
+/// The log's readings as the boards' driver takes them: each whole ring
+/// cycle's rows in the driver's slot order ([`FiringPlan::order`]), as
+/// [`from_log`] lays them on its slots (other cycles as they are), and
+/// each range as the driver measures it back from its echo time (within
+/// 1 mm of the log's). The EKF takes readings one at a time, and a gate's
+/// decision can turn on a millimetre: the host replays this to compare
+/// with the board reading for reading (docs/log.md, "The board and the
+/// host").
+pub fn as_the_board_reads(log: &Log, ring: usize) -> Result<Log, String> {
+    let plan = FiringPlan::new(ring, None).map_err(|e| format!("ring of {ring}: {e}"))?;
+    let mut rows = Vec::with_capacity(log.rows.len());
+    for cycle in cycles(&log.rows) {
+        if cycle.len() == ring {
+            rows.extend(plan.order.iter().filter_map(|&t| cycle.iter().find(|r| r.transducer == t)));
+        } else {
+            rows.extend_from_slice(cycle);
+        }
+    }
+    for r in &mut rows {
+        r.range_mm = r.range_mm.map(|mm| plan.range_mm(echo_us(&plan, mm)));
+    }
+    Ok(Log { rows })
+}
+
 /// The echo time the driver would measure for `range_mm`: the time of
-/// flight whose range, converted back by the driver, is nearest.
+/// flight whose range, converted back by the driver, is nearest, among
+/// those it reports (after its blanking, inside its window). A range at
+/// the blanking's edge (408 mm) is also the range of a few times inside
+/// it (2 375 µs converts to 408 mm too): the earliest such time was
+/// written once, and the board's driver refused it as an echo in its
+/// blanking where the host took the reading (#47).
 fn echo_us(plan: &FiringPlan, range_mm: u32) -> u32 {
     let um_per_s = f64::from(plan.module.sound().um_per_s());
     let guess = (2.0 * f64::from(range_mm) * 1e9 / um_per_s).round() as u32;
-    (guess.saturating_sub(3)..=guess.saturating_add(3))
+    let (lo, hi) = (plan.min_echo_us(), plan.window_us().saturating_sub(1));
+    (guess.saturating_sub(3).max(lo)..=guess.saturating_add(3).min(hi))
         .min_by_key(|&us| (plan.range_mm(us).abs_diff(range_mm), us))
-        .unwrap_or(guess)
+        .unwrap_or(guess.clamp(lo, hi))
 }
 
 /// A log as a scenario for the driver the boards run ([`FiringPlan`]: the
@@ -380,6 +415,22 @@ mod tests {
             })
             .collect();
         Log { rows }
+    }
+
+    #[test]
+    fn every_echo_time_written_is_one_the_driver_reports() {
+        // Every range the converter takes, blanking's edge and window's
+        // included, becomes a time the driver times (not in its blanking,
+        // inside its window) and converts back to within 1 mm; by hand, the
+        // blanking's edge: 2 380 µs at 343.2 m/s is 408.4 mm.
+        let plan = FiringPlan::new(16, None).unwrap();
+        let (min_mm, max_mm) = (plan.range_mm(plan.min_echo_us()), plan.range_mm(plan.window_us()));
+        assert_eq!((plan.min_echo_us(), min_mm), (2_380, 408));
+        for mm in min_mm..max_mm {
+            let us = echo_us(&plan, mm);
+            assert!(us >= plan.min_echo_us() && us < plan.window_us(), "{mm} mm: {us} µs");
+            assert!(plan.range_mm(us).abs_diff(mm) <= 1, "{mm} mm: {us} µs → {} mm", plan.range_mm(us));
+        }
     }
 
     #[test]

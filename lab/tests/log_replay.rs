@@ -237,4 +237,34 @@ fn logs_the_driver_could_not_have_made_are_not_converted() {
     // The host replay takes such a log: partial cycles are fine there.
     let v = run_json(&["replay", "--json", "--map", s(&depot_blob()), "--log", s(&log), "--initial-pose", "6,5,0"]);
     assert_eq!(v["log"]["cycles"].as_u64(), Some(2));
+    // A log that ends mid-ring (#47): its last ring dropped, with a note,
+    // the whole rings before it converted.
+    let ring =
+        |c: usize, ts: std::ops::Range<u32>| -> String { ts.map(|t| format!("{}.{t:02},{t},,0,0,0\n", c)).collect() };
+    std::fs::write(&log, format!("{HEAD}\n{}{}{}", ring(0, 0..16), ring(1, 0..16), ring(2, 0..5))).unwrap();
+    let o = lab().args(["scenario", "--from-log", s(&log), "--map", s(&depot_blob()), "-o", s(&scn)]).output().unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!((v["records"].as_u64(), v["cycles"].as_u64()), (Some(32), Some(2)), "{v}");
+    assert_eq!(v["partial_last_ring"], serde_json::json!({"readings": 5, "line": 34}), "{v}");
+    let note = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        note.contains("the log ends mid-ring: its last ring cycle (line 34) has 5 of the 16 readings, dropped"),
+        "{note}"
+    );
+    std::fs::remove_file(&scn).unwrap();
+    // A whole log keeps every ring and says nothing was dropped.
+    std::fs::write(&log, format!("{HEAD}\n{}{}", ring(0, 0..16), ring(1, 0..16))).unwrap();
+    let v = run_json(&["scenario", "--from-log", s(&log), "--map", s(&depot_blob()), "-o", s(&scn)]);
+    assert_eq!((v["records"].as_u64(), v["partial_last_ring"].is_null()), (Some(32), true), "{v}");
+    std::fs::remove_file(&scn).unwrap();
+    // A ring cut short in the middle (a logger that lost readings) is still refused.
+    std::fs::write(&log, format!("{HEAD}\n{}{}{}", ring(0, 0..16), ring(1, 0..5), ring(2, 0..16))).unwrap();
+    let o = lab().args(["scenario", "--from-log", s(&log), "--map", s(&depot_blob()), "-o", s(&scn)]).output().unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && err.contains("line 18: the ring cycle starting here lacks transducer(s) 5, 6"),
+        "{err}"
+    );
+    assert!(!scn.exists());
 }

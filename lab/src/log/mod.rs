@@ -408,6 +408,59 @@ pub fn cycles(rows: &[Row]) -> Vec<&[Row]> {
     out
 }
 
+/// A log's last ring cycle, cut short: what [`drop_partial_last_ring`] dropped.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct PartialRing {
+    /// Its readings.
+    pub readings: usize,
+    /// The line of its first.
+    pub line: u64,
+}
+
+impl PartialRing {
+    /// For a command's summary.
+    pub fn json(&self) -> serde_json::Value {
+        serde_json::json!({"readings": self.readings, "line": self.line})
+    }
+
+    /// The note a command prints to standard error.
+    pub fn note(&self, ring: usize) -> String {
+        format!(
+            "the log ends mid-ring: its last ring cycle (line {}) has {} of the {ring} readings, dropped (the \
+             driver fires every transducer once a cycle)",
+            self.line, self.readings
+        )
+    }
+}
+
+/// Drops the log's last ring cycle ([`cycles`]) when it has fewer than
+/// `ring` readings and a whole cycle comes before it: a recording stopped
+/// by hand ends mid-ring more often than not. A partial cycle anywhere
+/// else is left for the caller to refuse (a logger that lost readings),
+/// and so is a log that is one partial cycle.
+///
+/// ```
+/// use echoloc_lab::log::{drop_partial_last_ring, read, PartialRing};
+/// let mut text = String::from("time_s,transducer,range_mm,odom_x_m,odom_y_m,odom_theta_rad\n");
+/// for (i, t) in [0, 1, 2, 0].iter().enumerate() {
+///     text += &format!("{i},{t},1000,0,0,0\n");
+/// }
+/// let mut log = read(&text, 3).unwrap();
+/// assert_eq!(drop_partial_last_ring(&mut log, 3), Some(PartialRing { readings: 1, line: 5 }));
+/// assert_eq!(log.rows.len(), 3);
+/// assert_eq!(drop_partial_last_ring(&mut log, 3), None);
+/// ```
+pub fn drop_partial_last_ring(log: &mut Log, ring: usize) -> Option<PartialRing> {
+    let c = cycles(&log.rows);
+    let last = c.last()?;
+    if c.len() < 2 || last.len() >= ring || c[c.len() - 2].len() != ring {
+        return None;
+    }
+    let dropped = PartialRing { readings: last.len(), line: last[0].line };
+    log.rows.truncate(log.rows.len() - dropped.readings);
+    Some(dropped)
+}
+
 /// Reads a log file for a ring of `ring` transducers; errors name the file and the line.
 pub fn read_file(path: &std::path::Path, ring: usize) -> Result<Log, crate::LabError> {
     let text = std::fs::read_to_string(path).map_err(|e| crate::LabError(format!("{}: {e}", path.display())))?;
