@@ -184,7 +184,7 @@ pub fn board_cmd(a: &BoardArgs) -> Result<String, LabError> {
     };
     let hp = trace.final_pose(filters::Methods::Ekf).unwrap_or_default();
     let d = (bp[0] - hp[0]).hypot(bp[1] - hp[1]);
-    let dh = crate::simulate::world::wrap(bp[2] - hp[2]);
+    let dh = crate::angle::wrap(bp[2] - hp[2]);
     let r6 = |v: f64| (v * 1e6).round() / 1e6;
     let v: Value = json!({
         "map": {"path": a.input.map.display().to_string(), "crc": format!("{crc:#010x}"), "bytes": blob.len()},

@@ -51,6 +51,7 @@
 //! The small host program `examples/verdicts.rs` does this from the command
 //! line: `cargo run -p echoloc-lab --example verdicts -- MAP x,y,θ R0,R1,…`.
 
+pub mod angle;
 pub mod bag;
 pub mod bench;
 pub mod board;

@@ -9,7 +9,7 @@ use echoloc::credence::net::CredenceNet;
 use echoloc::credence::Credence;
 use echoloc::geometry::{Point, COORD_MAX};
 use echoloc::map::MapSource;
-use echoloc::predict::{nearest_in_window, place_sensor, predict, Mount, Pose, PredictParams};
+use echoloc::predict::{nearest_in_window, place_sensor, predict, Pose, PredictParams};
 use echoloc::window::{Strategy, Window, WindowParams};
 use serde_json::{json, Value};
 
@@ -169,9 +169,7 @@ pub fn load_map_with_field(path: &Path, buffer_mm: u32) -> Result<map::LoadedMap
 }
 
 /// The ring of `--ring SPEC` ([`crate::ring::load`]), its errors naming the option.
-pub fn ring_mounts(spec: &str) -> Result<Vec<Mount>, LabError> {
-    crate::ring::load(spec).map_err(|e| LabError(format!("--ring {e}")))
-}
+pub use crate::ring::ring_mounts;
 
 pub fn predict_cmd(a: &PredictArgs) -> Result<String, LabError> {
     let loaded = map::load::load(&a.map, &a.grid.options(a.buffer_mm, false))?;

@@ -29,7 +29,12 @@
 
 use echoloc::predict::{Mount, PIONEER16};
 
-use crate::map::LabError;
+use crate::error::LabError;
+
+/// [`load`] for a command's `--ring`, its errors named so.
+pub fn ring_mounts(spec: &str) -> Result<Vec<Mount>, LabError> {
+    load(spec).map_err(|e| LabError(format!("--ring {e}")))
+}
 
 /// The ring named by `spec`: `pioneer16`, or the path of a JSON ring file.
 /// Errors name the file and, where it is one transducer's fault, its index.

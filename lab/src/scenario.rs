@@ -349,11 +349,7 @@ pub fn from_log(
             let u = motion_f64((a[0], a[1], a[2]), (r.odometry[0], r.odometry[1], r.odometry[2]));
             let (s, c) = dr[2].sin_cos();
             let (dx, dy) = (f64::from(u.dx), f64::from(u.dy));
-            dr = [
-                dr[0] + c * dx - s * dy,
-                dr[1] + s * dx + c * dy,
-                crate::simulate::world::wrap(dr[2] + f64::from(u.dphi)),
-            ];
+            dr = [dr[0] + c * dx - s * dy, dr[1] + s * dx + c * dy, crate::angle::wrap(dr[2] + f64::from(u.dphi))];
             let echo_us = match r.range_mm {
                 None => None,
                 Some(mm) if mm < min_mm => {

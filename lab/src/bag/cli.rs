@@ -7,8 +7,8 @@ use clap::Args;
 use serde_json::{json, Value};
 
 use super::{read, Bag, CloudTiming, Options, RingStamp};
-use crate::map::LabError;
-use crate::simulate::{check_writable, write_all};
+use crate::error::LabError;
+use crate::files::{check_writable, write_all};
 
 /// Which topics of a bag to read (each found by type when not named).
 #[derive(Args, Clone, Debug, Default)]
@@ -104,7 +104,7 @@ impl BagTopics {
 /// are printed on stderr.
 pub fn load(path: &std::path::Path, topics: &BagTopics, ring: Option<&str>) -> Result<Bag, LabError> {
     let firing = ring.map(crate::ring::firing).transpose()?.unwrap_or_default();
-    let ring = ring.map(crate::predict::ring_mounts).transpose()?;
+    let ring = ring.map(crate::ring::ring_mounts).transpose()?;
     let n = ring.as_ref().map_or(echoloc::predict::PIONEER16.len(), Vec::len);
     let mut o = topics.options(ring);
     o.cloud_timing = topics.cloud_timing(&firing, n)?;
@@ -241,7 +241,7 @@ fn to_bag_cmd(a: &LogArgs, log_path: &std::path::Path) -> Result<String, LabErro
     // Before reading the log: a bag is never written over another.
     check_new_dir(&a.out).map_err(out_err)?;
     let ring_spec = a.ring.as_deref().unwrap_or("pioneer16");
-    let ring = crate::predict::ring_mounts(ring_spec)?;
+    let ring = crate::ring::ring_mounts(ring_spec)?;
     let log = crate::log::read_file(log_path, ring.len())?;
     let opt = WriteOptions {
         min_range_m: a.min_range_m,

@@ -476,7 +476,7 @@ pub(crate) fn compose(a: Pose2, b: Pose2) -> Pose2 {
 }
 
 pub(crate) fn wrap(a: f64) -> f64 {
-    crate::simulate::world::wrap(a)
+    crate::angle::wrap(a)
 }
 
 /// A frame without tf1's leading slash.

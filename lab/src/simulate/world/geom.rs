@@ -99,16 +99,7 @@ pub fn rectangle(c: P, w: f64, h: f64, angle: f64) -> Vec<P> {
         .collect()
 }
 
-/// Wraps an angle to (−π, π].
-pub fn wrap(a: f64) -> f64 {
-    use std::f64::consts::{PI, TAU};
-    let r = a - TAU * libm::floor((a + PI) / TAU);
-    if r <= -PI {
-        r + TAU
-    } else {
-        r
-    }
-}
+pub use crate::angle::wrap;
 
 #[cfg(test)]
 mod tests {
