@@ -114,6 +114,7 @@ fn a_floor_plan_with_open_doorways_is_inside_and_nothing_outside() {
     let Some(free) = &src.free_polygons else { panic!("a GeoJSON source") };
     let space = FreeSpace::of(&src.shapes, free, 1200);
     let FreeSpace::Enclosed(e) = &space else { panic!("{space:?}") };
+    assert_eq!(e.door_mm(), 1200);
     // Against the building by hand, on a 37 mm raster (not the lattice's)
     // from 4 m outside it: inside the outer walls and no furniture, less
     // the walls (points within 2 mm) and the entrance's own line (points
