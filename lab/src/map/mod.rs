@@ -308,7 +308,9 @@ pub fn compile_source(
 /// start.
 fn refuse_no_free_node(blob: Vec<u8>, summary: MapSummary) -> Result<(Vec<u8>, MapSummary), String> {
     let Some(field) = summary.extra.get("field") else { return Ok((blob, summary)) };
-    if field["free_nodes"].as_u64() != Some(0) {
+    // A map with no obstacle has nothing to find itself by: the commands
+    // that need them say so (`the map has no obstacles`).
+    if field["free_nodes"].as_u64() != Some(0) || summary.convex_pieces == 0 {
         return Ok((blob, summary));
     }
     let space = match summary.extra.get("free_space") {
