@@ -299,13 +299,14 @@ pub fn compile_source(
     }
     let known = src.grid.as_ref().map(|g| move |x: f64, y: f64| g.known_free_at(x, y));
     let known_ref = known.as_ref().map(|f| f as &(dyn Fn(f64, f64) -> bool + Sync));
-    let (blob, summary) = build_map_with(&src.shapes, buffer_mm, cell_mm, field.as_ref().map(|f| (f, known_ref)))?;
-    refuse_no_free_node(blob, summary)
+    build_map_with(&src.shapes, buffer_mm, cell_mm, field.as_ref().map(|f| (f, known_ref)))
 }
 
-/// A map compiled with a field that has no free node cannot find itself:
-/// refused here, with what its free space was, rather than at a replay's
-/// start.
+/// A drawing (GeoJSON) compiled with a field that has no free node cannot
+/// find itself: refused here, with what its free space was, rather than
+/// at a replay's start. (An occupancy grid says itself where it is free:
+/// its field is the grid's, as map_server's users expect, and the replay's
+/// start says when it has no free node.)
 fn refuse_no_free_node(blob: Vec<u8>, summary: MapSummary) -> Result<(Vec<u8>, MapSummary), String> {
     let Some(field) = summary.extra.get("field") else { return Ok((blob, summary)) };
     // A map with no obstacle has nothing to find itself by: the commands
@@ -319,8 +320,7 @@ fn refuse_no_free_node(blob: Vec<u8>, summary: MapSummary) -> Result<(Vec<u8>, M
             fs["enclosed_m2"], fs["walls_box_m2"], fs["door_mm"]
         ),
         Some(fs) if fs["from"] == "free polygons" => "the map's `free` polygons".into(),
-        Some(_) => "the obstacles' bounding box".into(),
-        None => "the cells the grid knows to be free".into(),
+        _ => "the obstacles' bounding box".into(),
     };
     Err(format!(
         "the localization field has no free node: no node of its free space, {space}, is {} mm clear of every \
