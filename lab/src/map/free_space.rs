@@ -156,6 +156,20 @@ impl FreeSpace {
         obstacles' bounding box, outside the building too; close the outer walls (gaps up to --door-mm count as \
         closed), give a larger --door-mm, or give a `free` polygon (a Feature with \"kind\": \"free\")";
 
+    /// Where it came from, in words, for a message.
+    pub fn describe(&self) -> String {
+        match self {
+            FreeSpace::Given(_) => "the map's `free` polygons".into(),
+            FreeSpace::Enclosed(e) => format!(
+                "what the walls enclose ({:.2} m² of their {:.2} m² box, gaps up to {} mm closed)",
+                e.enclosed_m2(),
+                e.walls_box_m2(),
+                e.door_mm()
+            ),
+            FreeSpace::BoundingBox => "the obstacles' bounding box".into(),
+        }
+    }
+
     /// The enclosed region is under this share of the walls' bounding box:
     /// the import warns (a doorway or entrance wider than a door, most
     /// likely).
@@ -395,9 +409,8 @@ impl Enclosure {
         }
         self.spread(&mut queue, OUTSIDE, Some(near));
         // 3: every other component of deep points, labelled as its first
-        // point is; their points, with the outside's, seed step 4.
+        // point is.
         let solids = solids(shapes);
-        let mut cores = Vec::new();
         for n in 0..nx * ny {
             if self.label[n] == UNSEEN && !near[n] {
                 let l = self.face(&solids, n);
@@ -405,12 +418,10 @@ impl Enclosure {
                 queue.push_back(n);
                 self.spread(&mut queue, l, Some(near));
             }
-            if self.label[n] != UNSEEN {
-                cores.push(n);
-            }
         }
-        // 4: the near points to the nearest core, all floods at once.
-        queue.extend(cores);
+        // 4: the near points to the nearest core, all floods at once (the
+        // cores are every point labelled so far).
+        queue.extend((0..nx * ny).filter(|&n| self.label[n] != UNSEEN));
         self.spread(&mut queue, UNSEEN, None);
         for n in 0..nx * ny {
             if self.label[n] == UNSEEN {

@@ -295,7 +295,7 @@ pub fn compile_source(
         if field.is_some() && !src.shapes.is_empty() {
             summary.extra.insert("free_space".into(), space.get_or_init(of).summary());
         }
-        return refuse_no_free_node(blob, summary);
+        return refuse_no_free_node(blob, summary, space.get_or_init(of));
     }
     let known = src.grid.as_ref().map(|g| move |x: f64, y: f64| g.known_free_at(x, y));
     let known_ref = known.as_ref().map(|f| f as &(dyn Fn(f64, f64) -> bool + Sync));
@@ -307,25 +307,22 @@ pub fn compile_source(
 /// at a replay's start. (An occupancy grid says itself where it is free:
 /// its field is the grid's, as map_server's users expect, and the replay's
 /// start says when it has no free node.)
-fn refuse_no_free_node(blob: Vec<u8>, summary: MapSummary) -> Result<(Vec<u8>, MapSummary), String> {
+fn refuse_no_free_node(
+    blob: Vec<u8>,
+    summary: MapSummary,
+    space: &free_space::FreeSpace,
+) -> Result<(Vec<u8>, MapSummary), String> {
     let Some(field) = summary.extra.get("field") else { return Ok((blob, summary)) };
     // A map with no obstacle has nothing to find itself by: the commands
     // that need them say so (`the map has no obstacles`).
     if field["free_nodes"].as_u64() != Some(0) || summary.convex_pieces == 0 {
         return Ok((blob, summary));
     }
-    let space = match summary.extra.get("free_space") {
-        Some(fs) if fs["from"] == "enclosed by the walls" => format!(
-            "what the walls enclose ({} m² of their {} m² box, gaps up to {} mm closed)",
-            fs["enclosed_m2"], fs["walls_box_m2"], fs["door_mm"]
-        ),
-        Some(fs) if fs["from"] == "free polygons" => "the map's `free` polygons".into(),
-        _ => "the obstacles' bounding box".into(),
-    };
     Err(format!(
-        "the localization field has no free node: no node of its free space, {space}, is {} mm clear of every \
+        "the localization field has no free node: no node of its free space, {}, is {} mm clear of every \
          obstacle (--field-clearance-mm); give a larger --door-mm or a `free` polygon (GeoJSON), a smaller \
          --field-clearance-mm, or --no-field",
+        space.describe(),
         field["clearance_mm"]
     ))
 }
