@@ -2,9 +2,23 @@
 # Every check CI runs, in order. Installs what a fresh machine lacks first.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-bash scripts/setup.sh
 
-step() { printf '\n== %s\n' "$*"; }
+# Each step's wall time, printed at the end, so CI readers
+# see where the 45 minutes go.
+step_name="" step_start=$SECONDS
+timings=()
+step_done() {
+  [ -n "$step_name" ] && timings+=("$(printf '%5d s  %s' $((SECONDS - step_start)) "${step_name:0:70}")")
+  return 0
+}
+step() {
+  step_done
+  step_name="$*" step_start=$SECONDS
+  printf '\n== %s\n' "$*"
+}
+
+step "set-up: what a fresh machine lacks"
+bash scripts/setup.sh
 
 # Real data the tests read (DESIGN §9): the shared folder beside the repository.
 for f in ../shared/data/maps/depot.yaml ../shared/data/maps/tb3_sandbox.yaml ../shared/data/sonar/scitos-g5-ring24.csv ../shared/data/real/intel-corrected.log.gz; do
@@ -118,5 +132,9 @@ step "docs"
 RUSTDOCFLAGS="-D warnings" cargo doc -q --no-deps
 RUSTDOCFLAGS="-D warnings" cargo doc -q --no-deps -p qemu-mps2-an386 -p stm32f4-sonar --target thumbv7em-none-eabihf
 
+step_done
+echo
+echo "time per step:"
+printf '%s\n' "${timings[@]}"
 echo
 echo "all checks passed"
