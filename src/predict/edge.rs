@@ -11,9 +11,21 @@ pub(super) struct EdgeCtx<'k> {
     pub(super) piece: u16,
     pub(super) obstacle: u16,
     pub(super) edge: u8,
-    /// The window's candidate keys, sorted by box distance, the box they
-    /// were found in and their distance scale, when known.
-    pub(super) occluders: Option<(&'k [u32], Rect, f32)>,
+    /// The window's nearest candidates, when known.
+    pub(super) occluders: Option<Occluders<'k>>,
+}
+
+/// The window's candidates as the occlusion test may use them.
+#[derive(Clone, Copy)]
+pub(super) struct Occluders<'k> {
+    /// Their keys, sorted by box distance.
+    pub(super) keys: &'k [u32],
+    /// The box they were found in.
+    pub(super) area: Rect,
+    /// A key's distance bound times this is a lower bound of its box's squared distance, mm².
+    pub(super) scale: f32,
+    /// Every candidate whose box lies nearer than this (squared, mm²) is among the keys.
+    pub(super) complete: f32,
 }
 
 /// The larger of two numbers that are not NaN (`f32::max` is a library call

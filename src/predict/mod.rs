@@ -49,7 +49,8 @@ mod search;
 pub use nearest::{nearest_in_window, Nearest};
 pub use ring::{place_sensor, predict_mount, predict_ring, Mount, Pose, PIONEER16};
 
-use keys::{box_distance2, sort_keys};
+use edge::Occluders;
+use keys::{box_distance2, NearestKeys};
 use nearer::Nearer;
 use search::search_piece;
 
@@ -62,7 +63,8 @@ use crate::window::{
     collect_beacons, is_beacon_with, CollectError, CollectStats, PathEnds, Strategy, Window, WindowError, WindowParams,
 };
 
-/// Most beacons one window may hold.
+/// Most beacons [`predict_unpruned`] holds for one window, and most candidates
+/// [`predict`] holds at once (a window of more is searched in batches).
 pub const MAX_BEACONS: usize = 256;
 /// Most κ evaluations along one direction of one edge.
 pub const MAX_SUBSURFACE_STEPS: u32 = 128;
@@ -229,9 +231,10 @@ impl core::ops::AddAssign for PredictStats {
 /// Pieces are visited nearest first (by the distance to their box) and the
 /// search stops at the first piece whose box lies beyond the best credible
 /// echo found: nothing there can be nearer. Ties in range go to the lower
-/// piece id, so the answer does not depend on the order of the visit. (A
-/// window with more candidates than [`MAX_BEACONS`] is searched in grid
-/// order without the early stop, with the same answer.)
+/// piece id, so the answer does not depend on the order of the visit. A
+/// window with more candidates than [`MAX_BEACONS`] (a dense building's
+/// clutter) is searched in batches of the nearest [`MAX_BEACONS`], with the
+/// same answer and the same fixed memory.
 pub fn predict<M: MapSource + ?Sized, K: Credence + ?Sized>(
     map: &M,
     window: &Window,
@@ -247,34 +250,18 @@ pub fn predict<M: MapSource + ?Sized, K: Credence + ?Sized>(
     // to the piece's box, `shift` such that R_max² fits 16 bits: sorting the
     // keys sorts by a lower bound of the distance, then by id; and
     // `(key >> 16) · 2^shift` is a lower bound of d².
-    let mut keys: Vec<u32, MAX_BEACONS> = Vec::new();
-    let mut overflow = false;
     let r2_max = sector.r_max_mm as u64 * sector.r_max_mm as u64;
     let shift = (u64::BITS - r2_max.leading_zeros()).saturating_sub(16);
     let scale = (1u64 << shift) as f32;
     let area = sector.bbox();
-    let q = map
-        .for_each_candidate_box(area, |id, bbox| {
-            let d2 = box_distance2(o, &bbox);
-            if d2 > r2_max {
-                return; // nothing of it within R_max
-            }
-            if keys.push(((d2 >> shift) as u32) << 16 | id as u32).is_err() {
-                overflow = true;
-            }
-        })
-        .map_err(|e| PredictError::Collect(CollectError::Map(e)))?;
-    if overflow {
-        return predict_unpruned(map, window, params, credence);
-    }
+    let lower_bound = |key: u32| (key >> 16) as f32 * scale;
+    let mut keys = NearestKeys::<MAX_BEACONS>::new();
     let mut stats = PredictStats::default();
-    stats.collect.cells = q.cells;
-    stats.collect.candidates = q.candidates;
-    sort_keys(&mut keys);
+    nearest_keys(map, o, area, r2_max, shift, None, &mut keys, &mut stats)?;
     // `scripts/panic-never.sh --plant` only: an index no proof can bound,
     // which must make the panic-never link fail.
     #[cfg(echoloc_plant_panic)]
-    let _ = keys[core::hint::black_box(0)];
+    let _ = keys.held()[core::hint::black_box(0)];
     // `scripts/panic-never.sh --overflow --plant` only: a sum no bound covers,
     // which the overflow count must find.
     #[cfg(echoloc_plant_overflow)]
@@ -287,56 +274,130 @@ pub fn predict<M: MapSource + ?Sized, K: Credence + ?Sized>(
     let oblique_limit = crate::f32math::sin_cos((params.window.delta_max_deg + 0.01).to_radians());
     // The pseudo-paths' end points, once for every candidate.
     let mut ends = (params.strategy == Strategy::PseudoPaths).then(|| PathEnds::new(window));
-    for &key in keys.iter() {
-        let lb2 = (key >> 16) as f32 * scale;
-        if best.is_some_and(|(r, _)| lb2 > (r + 1.0) * (r + 1.0)) {
-            break; // this box and every later one lie beyond the best echo
-        }
-        let Some(piece) = map.piece(key as u16) else { continue };
-        // The exact strategy needs no test of its own here: an edge the
-        // search clips into the window makes the piece meet the sector, and
-        // a piece that does not meet it has no such edge. The pseudo-paths
-        // first pass over a box beside the cone (nothing of it in the window;
-        // the exact strategy's own clipping is cheaper than this test).
-        if let Some(ends) = &mut ends {
-            if sector.box_outside_wedge(&piece.bbox) || !is_beacon_with(window, Some(ends), &piece, &mut stats.collect)
-            {
-                continue;
+    // Batches of the nearest candidates, nearest first; one unless the
+    // window holds more than MAX_BEACONS. Past the first, the occlusion
+    // test walks the grid (the nearer candidates are no longer at hand).
+    let mut first = true;
+    'batches: loop {
+        let complete = keys.dropped().map_or(f32::INFINITY, lower_bound);
+        let occluders = first.then_some(Occluders { keys: keys.held(), area, scale, complete });
+        for &key in keys.held() {
+            if best.is_some_and(|(r, _)| lower_bound(key) > (r + 1.0) * (r + 1.0)) {
+                break 'batches; // this box and every later one lie beyond the best echo
             }
+            let Some(piece) = map.piece(key as u16) else { continue };
+            // The exact strategy needs no test of its own here: an edge the
+            // search clips into the window makes the piece meet the sector, and
+            // a piece that does not meet it has no such edge. The pseudo-paths
+            // first pass over a box beside the cone (nothing of it in the window;
+            // the exact strategy's own clipping is cheaper than this test).
+            if let Some(ends) = &mut ends {
+                if sector.box_outside_wedge(&piece.bbox)
+                    || !is_beacon_with(window, Some(ends), &piece, &mut stats.collect)
+                {
+                    continue;
+                }
+            }
+            stats.beacons = stats.beacons.wrapping_add(1);
+            // The candidates are every piece in the window's box within R_max:
+            // they serve as the occlusion test's candidates too.
+            search_piece(map, window, &piece, params, credence, occluders, Some(oblique_limit), &mut best, &mut stats);
         }
-        stats.beacons = stats.beacons.wrapping_add(1);
-        // The candidates are every piece in the window's box within R_max:
-        // they serve as the occlusion test's candidates too.
-        let occluders = Some((&keys[..], area, scale));
-        search_piece(map, window, &piece, params, credence, occluders, Some(oblique_limit), &mut best, &mut stats);
+        let (Some(_), Some(&last)) = (keys.dropped(), keys.held().last()) else { break };
+        if best.is_some_and(|(r, _)| complete > (r + 1.0) * (r + 1.0)) {
+            break; // what was left out lies beyond the best echo
+        }
+        nearest_keys(map, o, area, r2_max, shift, Some(last), &mut keys, &mut stats)?;
+        first = false;
     }
     let mut found = best.map(|(_, p)| p);
     if let (Some(p), Some(delta), Strategy::Exact) = (found.as_mut(), params.nearer_delta_deg, params.strategy) {
-        // Every piece with a point nearer than the echo is among the keys
-        // (they hold every box within R_max), in order of box distance.
+        // Every piece with a point nearer than the echo is among the
+        // candidates (they hold every box within R_max), in order of box
+        // distance: the first batch again if the search went past it.
         let lim = p.range_mm.saturating_sub(p.tolerance_mm) as f32;
         let mut near = Nearer::new(window, delta, p);
-        for &key in keys.iter().take_while(|&&k| (k >> 16) as f32 * scale <= lim * lim) {
-            near.piece(map, key as u16, Some((&keys[..], area, scale)), &mut stats);
+        if !first {
+            nearest_keys(map, o, area, r2_max, shift, None, &mut keys, &mut stats)?;
+            first = true;
+        }
+        loop {
+            let complete = keys.dropped().map_or(f32::INFINITY, lower_bound);
+            let occluders = first.then_some(Occluders { keys: keys.held(), area, scale, complete });
+            for &key in keys.held().iter().take_while(|&&k| lower_bound(k) <= lim * lim) {
+                near.piece(map, key as u16, occluders, &mut stats);
+            }
+            let (Some(_), Some(&last)) = (keys.dropped(), keys.held().last()) else { break };
+            if complete > lim * lim {
+                break;
+            }
+            nearest_keys(map, o, area, r2_max, shift, Some(last), &mut keys, &mut stats)?;
+            first = false;
         }
         p.nearer_mm = near.found();
     }
     Ok((found, stats))
 }
 
+/// Puts into `keys` the `MAX_BEACONS` nearest of the window's candidates
+/// after the key `after` (all of them when they fit), sorted: every piece
+/// whose box lies in the window's box `area` within `R_max` of `o`.
+#[allow(clippy::too_many_arguments)]
+fn nearest_keys<M: MapSource + ?Sized>(
+    map: &M,
+    o: Point,
+    area: crate::geometry::Rect,
+    r2_max: u64,
+    shift: u32,
+    after: Option<u32>,
+    keys: &mut NearestKeys<MAX_BEACONS>,
+    stats: &mut PredictStats,
+) -> Result<(), PredictError> {
+    keys.clear();
+    let q = map
+        .for_each_candidate_box(area, |id, bbox| {
+            let d2 = box_distance2(o, &bbox);
+            if d2 > r2_max {
+                return; // nothing of it within R_max
+            }
+            let key = ((d2 >> shift) as u32) << 16 | id as u32;
+            if after.is_none_or(|a| key > a) {
+                keys.offer(key);
+            }
+        })
+        .map_err(|e| PredictError::Collect(CollectError::Map(e)))?;
+    keys.sort();
+    stats.collect.cells = stats.collect.cells.wrapping_add(q.cells);
+    stats.collect.candidates = stats.collect.candidates.wrapping_add(q.candidates);
+    Ok(())
+}
+
 /// [`predict`] without its shortcuts: every beacon in grid order, no early
-/// stop, occlusion through the grid. The same answer, slower: [`predict`]
-/// falls back to it for a window with more than [`MAX_BEACONS`] candidates,
-/// and tests and benchmarks compare the two. Never inlined: its beacon set
-/// takes stack only when it runs.
-#[inline(never)]
+/// stop, occlusion through the grid. The same answer, slower, for windows of
+/// up to [`MAX_BEACONS`] beacons ([`CollectError::TooManyBeacons`] past
+/// them, where [`predict`] searches in batches): tests and benchmarks
+/// compare the two. Never inlined: its beacon set takes stack only when it
+/// runs.
+#[inline]
 pub fn predict_unpruned<M: MapSource + ?Sized, K: Credence + ?Sized>(
     map: &M,
     window: &Window,
     params: &PredictParams,
     credence: &K,
 ) -> Result<(Option<Prediction>, PredictStats), PredictError> {
-    let mut beacons: Vec<u16, MAX_BEACONS> = Vec::new();
+    predict_unpruned_with::<M, K, MAX_BEACONS>(map, window, params, credence)
+}
+
+/// [`predict_unpruned`] with room for `B` beacons: the reference a test
+/// holds [`predict`]'s batches to on a window of more than [`MAX_BEACONS`].
+#[inline(never)]
+pub fn predict_unpruned_with<M: MapSource + ?Sized, K: Credence + ?Sized, const B: usize>(
+    map: &M,
+    window: &Window,
+    params: &PredictParams,
+    credence: &K,
+) -> Result<(Option<Prediction>, PredictStats), PredictError> {
+    let mut beacons: Vec<u16, B> = Vec::new();
     let mut stats =
         PredictStats { collect: collect_beacons(map, window, params.strategy, &mut beacons)?, ..Default::default() };
     stats.beacons = beacons.len() as u32;

@@ -1,10 +1,9 @@
 //! The nearer-surface check ([`Prediction::nearer_mm`]): a corner or a face
 //! within the check's δ nearer than the echo point.
 
-use super::edge::{diff_f32, fmax, fmin, roots, EdgeCtx};
+use super::edge::{diff_f32, fmax, fmin, roots, EdgeCtx, Occluders};
 use super::occlusion::occluded;
 use super::{PredictStats, Prediction};
-use crate::geometry::Rect;
 use crate::map::MapSource;
 use crate::window::Window;
 
@@ -42,7 +41,7 @@ impl<'w> Nearer<'w> {
         &mut self,
         map: &M,
         id: u16,
-        occluders: Option<(&[u32], Rect, f32)>,
+        occluders: Option<Occluders<'_>>,
         stats: &mut PredictStats,
     ) {
         let sector = &self.window.sector;

@@ -10,7 +10,8 @@ use crate::map::{Layer, MapSource};
 /// so a neighbour that only touches the echo point does not hide it.
 ///
 /// With the window's sorted candidates at hand (every piece whose box meets
-/// the window's box, within `R_max`), and the ray inside that box, only the
+/// the window's box, within `R_max`, up to the distance they are complete
+/// to), and the ray inside that box and within that distance, only the
 /// candidates whose box lies nearer than the point are tested: a piece the
 /// ray meets at `q` has `q` in its box, so its box meets the window's box,
 /// and its box is no farther than `q`. The answer is the grid query's,
@@ -30,12 +31,12 @@ pub(super) fn occluded<M: MapSource + ?Sized>(
     );
     let seg = Segment::new(ctx.o, end);
     let reach = seg.bbox();
-    if let Some((keys, _, scale)) =
-        ctx.occluders.filter(|(_, area, _)| area.contains(reach.min) && area.contains(reach.max))
+    let reach2 = (range + 1.0) * (range + 1.0);
+    if let Some(c) =
+        ctx.occluders.filter(|c| c.area.contains(reach.min) && c.area.contains(reach.max) && reach2 < c.complete)
     {
-        let reach2 = (range + 1.0) * (range + 1.0);
-        for &key in keys {
-            if (key >> 16) as f32 * scale > reach2 {
+        for &key in c.keys {
+            if (key >> 16) as f32 * c.scale > reach2 {
                 break; // this box and every later one lie beyond the point
             }
             let id = key as u16;

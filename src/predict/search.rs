@@ -1,17 +1,16 @@
 //! The search of one beacon's front edges: exact clipping to the window, the
 //! nearest credible point of each (Cases I–III), and the subsurface walk.
 
-use super::edge::{diff_f32, fmax, fmin, roots, EdgeCtx};
+use super::edge::{diff_f32, fmax, fmin, roots, EdgeCtx, Occluders};
 use super::occlusion::occluded;
 use super::{Case, PredictParams, PredictStats, Prediction, MAX_SUBSURFACE_STEPS};
 use crate::credence::{Credence, EchoGeometry, Kappa};
-use crate::geometry::{Point, Rect, Segment};
+use crate::geometry::{Point, Segment};
 use crate::map::{MapSource, Piece};
 use crate::window::Window;
 
 /// Searches every front edge of one beacon that meets the window.
-/// `occluders`: the window's candidate keys, sorted, the box they were
-/// found in and their distance scale (see [`occluded`]). `oblique_limit`:
+/// `occluders`: the window's nearest candidates (see [`occluded`]). `oblique_limit`:
 /// `(sin, cos)` of an angle above δ_max, to pass over edges seen beyond it
 /// everywhere (see [`seen_beyond`]).
 #[allow(clippy::too_many_arguments)]
@@ -21,7 +20,7 @@ pub(super) fn search_piece<M: MapSource + ?Sized, K: Credence + ?Sized>(
     piece: &Piece<'_>,
     params: &PredictParams,
     credence: &K,
-    occluders: Option<(&[u32], Rect, f32)>,
+    occluders: Option<Occluders<'_>>,
     oblique_limit: Option<(f32, f32)>,
     best: &mut Option<(f32, Prediction)>,
     stats: &mut PredictStats,
