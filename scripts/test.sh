@@ -113,7 +113,7 @@ bash scripts/replay-checks.sh
 step "big maps (issue #11 item 5): the depot tiled 1x1, 3x2 and 4x4, imported and run from a flash partition"
 bash scripts/big-maps.sh
 
-step "real buildings (issue #35): the ladder script's short case on the Intel lidar run (the whole table: docs/real-buildings.md)"
+step "real buildings (issues #35, #49): the ladder script's short case on the Intel and Freiburg 079 lidar runs (the whole tables: docs/real-buildings.md)"
 bash scripts/real-buildings.sh --short
 
 step "the truth's lead over the best wrong place (issue #36 item 1): the script's short case (the whole table: docs/localization.md)"

@@ -2,7 +2,7 @@
 //! (`../shared/data/real/`, real geometry no one here made): the map a SLAM
 //! user would make of one pass, the sonar run derived from another pass,
 //! echoloc on it; the derived run's log replays to the same figures.
-//! `scripts/real-buildings.sh` runs the whole ladder on both buildings;
+//! `scripts/real-buildings.sh` runs the whole ladder on the three buildings;
 //! this is its short case (60 scans, 37 m).
 
 mod common;
