@@ -166,3 +166,26 @@ pub fn is_simple(p: &[Point]) -> bool {
     }
     true
 }
+
+/// xorshift64: a small fixed stream for tests that draw their own cases, so
+/// a failure names its case and every run draws the same ones.
+pub struct XorShift64(pub u64);
+
+impl XorShift64 {
+    pub fn next_u64(&mut self) -> u64 {
+        self.0 ^= self.0 << 13;
+        self.0 ^= self.0 >> 7;
+        self.0 ^= self.0 << 17;
+        self.0
+    }
+
+    /// Uniform in [lo, hi) (up to the modulo's bias, negligible here).
+    pub fn range(&mut self, lo: i64, hi: i64) -> i64 {
+        lo + (self.next_u64() % (hi - lo) as u64) as i64
+    }
+
+    /// Uniform in [0, 1).
+    pub fn unit(&mut self) -> f64 {
+        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
+    }
+}

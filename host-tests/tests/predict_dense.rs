@@ -16,18 +16,11 @@ use echoloc::window::{Strategy, Window, WindowParams};
 
 type M = Map<4096, 16384, 4096, 32768>;
 
-/// xorshift64: the test's own numbers, the same on every run.
-struct Rng(u64);
-impl Rng {
-    fn next(&mut self) -> u64 {
-        self.0 ^= self.0 << 13;
-        self.0 ^= self.0 >> 7;
-        self.0 ^= self.0 << 17;
-        self.0
-    }
-    fn range(&mut self, lo: i32, hi: i32) -> i32 {
-        lo + (self.next() % (hi - lo) as u64) as i32
-    }
+use echoloc_host_tests::XorShift64 as Rng;
+
+/// Uniform in [lo, hi), in millimetres.
+fn mm(rng: &mut Rng, lo: i32, hi: i32) -> i32 {
+    rng.range(lo.into(), hi.into()) as i32
 }
 
 /// A room of `specks` small squares (a laser map's furniture, 50–100 mm)
@@ -40,7 +33,7 @@ fn dense_room(rng: &mut Rng, specks: usize, half: i32) -> Box<M> {
         m.add_obstacle(ObstacleKind::Wall, &[w]).unwrap();
     }
     for _ in 0..specks {
-        let (x, y, s) = (rng.range(-half, half), rng.range(-half, half), rng.range(50, 100));
+        let (x, y, s) = (mm(rng, -half, half), mm(rng, -half, half), mm(rng, 50, 100));
         // Keep the middle clear: the transducers stand there.
         if x.abs() < 400 && y.abs() < 400 {
             continue;
@@ -49,8 +42,8 @@ fn dense_room(rng: &mut Rng, specks: usize, half: i32) -> Box<M> {
         m.add_obstacle(ObstacleKind::Solid, &[&sq]).unwrap();
     }
     for _ in 0..20 {
-        let (x, y) = (rng.range(-half, half), rng.range(-half, half));
-        let (dx, dy) = (rng.range(-900, 900), rng.range(-900, 900));
+        let (x, y) = (mm(rng, -half, half), mm(rng, -half, half));
+        let (dx, dy) = (mm(rng, -900, 900), mm(rng, -900, 900));
         if (x.abs() < 1000 && y.abs() < 1000) || (dx == 0 && dy == 0) {
             continue;
         }
@@ -67,11 +60,11 @@ fn dense_room(rng: &mut Rng, specks: usize, half: i32) -> Box<M> {
 /// lies past the first batch.
 fn corridor(rng: &mut Rng, specks: usize) -> Box<M> {
     let mut m: Box<M> = Box::default();
-    let x = rng.range(3500, 5000);
-    m.add_obstacle(ObstacleKind::Wall, &[&[Point::new(x, -3000), Point::new(x + rng.range(-300, 300), 3000)]]).unwrap();
+    let x = mm(rng, 3500, 5000);
+    m.add_obstacle(ObstacleKind::Wall, &[&[Point::new(x, -3000), Point::new(x + mm(rng, -300, 300), 3000)]]).unwrap();
     let mut n = 0;
     while n < specks {
-        let (px, py, s) = (rng.range(-200, 5500), rng.range(-2800, 2800), rng.range(50, 100));
+        let (px, py, s) = (mm(rng, -200, 5500), mm(rng, -2800, 2800), mm(rng, 50, 100));
         if (py.abs() as f64) < 0.76 * px as f64 + 300.0 {
             continue;
         }
@@ -90,8 +83,8 @@ fn corridor(rng: &mut Rng, specks: usize) -> Box<M> {
 fn check(m: &M, window: &WindowParams, credence: &impl Credence, rng: &mut Rng, turn: i32) -> (usize, usize) {
     let (mut dense, mut later) = (0, 0);
     for _ in 0..60 {
-        let apex = Point::new(rng.range(-300, 300), rng.range(-300, 300));
-        let heading = rng.range(-turn, turn) as f32 / 1000.0;
+        let apex = Point::new(mm(rng, -300, 300), mm(rng, -300, 300));
+        let heading = mm(rng, -turn, turn) as f32 / 1000.0;
         for strategy in [Strategy::Exact, Strategy::PseudoPaths] {
             let params = PredictParams { strategy, ..PredictParams::new(*window) };
             let w = Window::place_for(window, apex, heading, strategy).unwrap();
@@ -177,7 +170,7 @@ fn an_echo_hidden_by_a_piece_past_the_first_batch_is_hidden() {
     m.add_obstacle(ObstacleKind::Wall, &[&[end(-50.0), end(50.0)]]).unwrap();
     let mut n = 0;
     while n < 255 {
-        let (px, py) = (rng.range(0, 3400), rng.range(-2700, 2700));
+        let (px, py) = (mm(&mut rng, 0, 3400), mm(&mut rng, -2700, 2700));
         if (py.abs() as f64) < 0.76 * px as f64 + 300.0 || px * px + py * py > 3500 * 3500 {
             continue;
         }

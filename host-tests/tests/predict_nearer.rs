@@ -24,22 +24,7 @@ use geo::Intersects;
 
 type M = Map<64, 1024, 256, 2048>;
 
-struct Rng(u64);
-
-impl Rng {
-    fn next(&mut self) -> u64 {
-        self.0 ^= self.0 << 13;
-        self.0 ^= self.0 >> 7;
-        self.0 ^= self.0 << 17;
-        self.0
-    }
-    fn range(&mut self, lo: i64, hi: i64) -> i64 {
-        lo + (self.next() % (hi - lo) as u64) as i64
-    }
-    fn unit(&mut self) -> f64 {
-        (self.next() >> 11) as f64 / (1u64 << 53) as f64
-    }
-}
+use echoloc_host_tests::XorShift64 as Rng;
 
 /// A convex polygon: `n` points on a circle, in angle order, at least 25°
 /// apart so that rounding to millimetres keeps it convex.
