@@ -134,18 +134,22 @@ mod tests {
 
     use super::{sort_keys, NearestKeys};
 
+    /// xorshift64 from `seed`: the tests' fixed stream of keys.
+    fn xorshift(mut x: u64) -> impl FnMut() -> u64 {
+        move || {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            x
+        }
+    }
+
     /// Against a full sort: the `N` smallest of the offered keys, sorted,
     /// and the next smallest as the one left out, for counts on both sides
     /// of `N`, keys offered in random order with long runs of close values.
     #[test]
     fn nearest_keys_are_the_smallest_of_a_full_sort() {
-        let mut x = 0x2545_f491_4f6c_dd1du64;
-        let mut next = || {
-            x ^= x << 13;
-            x ^= x >> 7;
-            x ^= x << 17;
-            x
-        };
+        let mut next = xorshift(0x2545_f491_4f6c_dd1d);
         let mut near = NearestKeys::<16>::new();
         for case in 0..3_000 {
             let count = (next() % 60) as usize;
@@ -175,13 +179,7 @@ mod tests {
     /// insertion/heap switch, with many repeated keys.
     #[test]
     fn sort_keys_matches_sort_unstable() {
-        let mut x = 0x9e37_79b9_7f4a_7c15u64;
-        let mut next = || {
-            x ^= x << 13;
-            x ^= x >> 7;
-            x ^= x << 17;
-            x
-        };
+        let mut next = xorshift(0x9e37_79b9_7f4a_7c15);
         for case in 0..5_000 {
             let len = (next() % 300) as usize;
             let modulus = if case % 3 == 0 { 7 } else { u32::MAX as u64 };

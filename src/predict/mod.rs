@@ -376,8 +376,7 @@ fn nearest_keys<M: MapSource + ?Sized>(
 /// stop, occlusion through the grid. The same answer, slower, for windows of
 /// up to [`MAX_BEACONS`] beacons ([`CollectError::TooManyBeacons`] past
 /// them, where [`predict`] searches in batches): tests and benchmarks
-/// compare the two. Never inlined: its beacon set takes stack only when it
-/// runs.
+/// compare the two.
 #[inline]
 pub fn predict_unpruned<M: MapSource + ?Sized, K: Credence + ?Sized>(
     map: &M,
@@ -390,6 +389,7 @@ pub fn predict_unpruned<M: MapSource + ?Sized, K: Credence + ?Sized>(
 
 /// [`predict_unpruned`] with room for `B` beacons: the reference a test
 /// holds [`predict`]'s batches to on a window of more than [`MAX_BEACONS`].
+/// Never inlined: its beacon set takes stack only when it runs.
 #[inline(never)]
 pub fn predict_unpruned_with<M: MapSource + ?Sized, K: Credence + ?Sized, const B: usize>(
     map: &M,
