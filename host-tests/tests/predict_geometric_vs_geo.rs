@@ -31,6 +31,17 @@ fn geo_nearest(m: &M, o: Point, poly: &Polygon<f64>) -> Option<f64> {
     let mut best: Option<f64> = None;
     for piece in m.pieces() {
         let v = piece.shape.vertices();
+        // A sensor on an obstacle's boundary has it at range 0 in every
+        // sector; geo's boolean ops drop the zero-area contact at the apex.
+        let touch = if v.len() == 2 {
+            Euclidean.distance(&op, &geo_line(v[0], v[1]))
+        } else {
+            Euclidean.distance(&op, &geo_polygon(v))
+        };
+        if touch < 1e-6 {
+            best = Some(0.0);
+            continue;
+        }
         let d = if v.len() == 2 {
             let mls = MultiLineString::new(vec![LineString::from(geo_line(v[0], v[1]))]);
             let clipped = poly.clip(&mls, false);
