@@ -13,9 +13,10 @@ poses=${1:-500}
 target=thumbv7em-none-eabihf
 out=target/bench-m4
 mkdir -p "$out"
-cargo build -q --release -p echoloc-lab
+source scripts/lab-tool.sh
+lab_build
 cargo build -q -p qemu-mps2-an386 --bin bench_windows --target "$target" --release
-lab=${CARGO_TARGET_DIR:-target}/release/echoloc-lab
+lab=$LAB
 elf=${CARGO_TARGET_DIR:-target}/$target/release/bench_windows
 for half in 15 30; do
   "$lab" bench --map boards/qemu-mps2-an386/depot.map --poses "$poses" --rounds 1 --half-angles-deg "$half" \

@@ -11,8 +11,8 @@
 # 1×1 run's (the grid index must keep a window's cost local). A refused
 # oversized length claim and a refused corrupted map are checked too.
 # Ends with a table. Outputs go to target/big-maps/. Takes about 6 s once
-# the lab tool's release build exists (building it first: about 2 minutes
-# on 2 cores).
+# the lab tool is built (scripts/lab-tool.sh; its release build from nothing:
+# about 6 minutes on 2 cores).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -55,7 +55,8 @@ run_fw() {
 
 echo "== building the bigmap firmware and the lab tool"
 cargo build -q -p qemu-mps2-an386 --bin bigmap --target "$target" --release
-cargo build -q --release -p echoloc-lab
+source scripts/lab-tool.sh
+lab_build
 
 maps=(1x1 3x2 4x4)
 declare -A pieces bytes validate window
@@ -67,7 +68,7 @@ for m in "${maps[@]}"; do
   # Without the localization field (#27): this checks the predictor's
   # scaling, and with the field the 3x2 map is 3.3 MB, beyond the 2 MiB
   # partition (a board with such a map keeps a coarser field, or none).
-  cargo run -q --release -p echoloc-lab -- map import "$base.yaml" --no-field -o "$base.map" >"$base.json"
+  "$LAB" map import "$base.yaml" --no-field -o "$base.map" >"$base.json"
   cat "$base.json"
   pieces[$m]=$(json_field "$base.json" convex_pieces)
   bytes[$m]=$(stat -c %s "$base.map")

@@ -27,9 +27,10 @@ while [ $# -gt 0 ]; do
     *) echo "usage: bash scripts/mcl-lead.sh [--seeds N] [--maps \"…\"] [--clutter \"…\"] [--import \"ARGS\"]" >&2; exit 2 ;;
   esac
 done
-cargo build -q --release -p echoloc-lab --example mcl_probe
+source scripts/lab-tool.sh
+lab_build --example mcl_probe
 if [ -n "$import" ]; then
-  cargo build -q --release -p echoloc-lab
+  lab_build
   mkdir -p target/mcl-lead
 fi
 rows=$(mktemp)
@@ -38,12 +39,12 @@ for map in $maps; do
   src="../shared/data/maps/$map.yaml"
   if [ -n "$import" ]; then
     # shellcheck disable=SC2086 # the arguments are words
-    target/release/echoloc-lab map import "$src" -o "target/mcl-lead/$map.map" $import >/dev/null
+    "$LAB" map import "$src" -o "target/mcl-lead/$map.map" $import >/dev/null
     src="target/mcl-lead/$map.map"
   fi
   for inc in $clutter; do
     for seed in $(seq 1 "$seeds"); do
-      out=$(NTRAJ=20000 target/release/examples/mcl_probe "$src" "$seed" "$inc" | grep '^lead after' || true)
+      out=$(NTRAJ=20000 "$lab_dir/examples/mcl_probe" "$src" "$seed" "$inc" | grep '^lead after' || true)
       l10=$(awk '/after 10 cycles/ {print $5}' <<<"$out")
       l40=$(awk '/after 40 cycles/ {print $5}' <<<"$out")
       # The first report at or past 15 m and 30 m of travel (a report every 10 cycles, ~2 m).

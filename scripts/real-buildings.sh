@@ -21,8 +21,9 @@ for f in intel-corrected.log.gz aces-corrected.log.gz freiburg-079-corrected.log
     exit 1
   fi
 done
-cargo build -q --release -p echoloc-lab
-L=./target/release/echoloc-lab
+source scripts/lab-tool.sh
+lab_build
+L=$LAB
 out=${OUT:-target/real-buildings}
 mkdir -p "$out"
 walls=${WALLS:-lines}

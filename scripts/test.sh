@@ -28,6 +28,9 @@ for f in ../shared/data/maps/depot.yaml ../shared/data/maps/tb3_sandbox.yaml ../
   fi
 done
 thumbs=(thumbv7em-none-eabihf thumbv6m-none-eabi)
+# The scripts' short cases run the lab tool the host tests built (dev profile)
+# rather than compiling it again in release (scripts/lab-tool.sh).
+export ECHOLOC_LAB_PROFILE=dev
 
 step "format"
 cargo fmt --all -- --check
