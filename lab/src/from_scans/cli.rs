@@ -105,6 +105,8 @@ pub struct Common<'a> {
     pub bag: Option<PathBuf>,
     /// One CSV row per reading (the filters' view).
     pub readings_csv: Option<PathBuf>,
+    /// `--no-robust`, `--bank` and the other switches of the filters.
+    pub switches: crate::simulate::filters::Switches,
 }
 
 /// Runs one rung, or the ladder.
@@ -140,7 +142,12 @@ pub fn run(c: &Common<'_>, a: &ScansArgs) -> Result<String, LabError> {
         };
         let d =
             derive(&scans, rung, &inputs, &c.mounts, &opt).map_err(|e| LabError(format!("{}: {e}", path.display())))?;
-        let (trace, steps, kept) = run_filters(&d, &view, view.field(), &c.mounts, c.loaded.crc(), c.seed, c.start)
+        let how = |s: &mut crate::simulate::filters::Start| {
+            s.seed = c.seed;
+            c.switches.apply(s);
+            crate::simulate::report::apply_start(s, c.start);
+        };
+        let (trace, steps, kept) = run_filters(&d, &view, view.field(), &c.mounts, c.loaded.crc(), how)
             .map_err(|e| LabError(format!("{}: {e}", path.display())))?;
         let mut r = report(&trace, None);
         if let Some(o) = r.as_object_mut() {

@@ -440,15 +440,15 @@ pub fn grid_cast(g: &Grid, o: (f64, f64), d: (f64, f64), max: f64) -> Option<f64
 }
 
 /// The filters on a derivation: the kept readings as the scenario's
-/// records, from the first true pose (or `start`).
+/// records, from the first true pose, with what `how` sets on that start
+/// (the seed, the start the user gave, the filters' switches).
 pub fn run_filters<M: MapSource>(
     d: &Derived,
     map: &M,
     field: &echoloc::map::FieldView<'_>,
     mounts: &[Mount],
     map_crc: u32,
-    seed: u64,
-    start: Option<crate::simulate::localization::StartArg>,
+    how: impl FnOnce(&mut Start),
 ) -> Result<(Trace, Vec<filters::Step>, Vec<SimReading>), String> {
     let kept = d.kept();
     let records = crate::simulate::report::to_records(&kept).map_err(|e| e.0)?;
@@ -464,9 +464,9 @@ pub fn run_filters<M: MapSource>(
         bound_heading_deg: 2.0,
     };
     let steps = filters::steps_of_records(&header, &records)?;
-    let mut how = Start { seed, ..crate::simulate::report::start_of(&header) };
-    crate::simulate::report::apply_start(&mut how, start);
-    let trace = filters::run(map, field, mounts, &how, &steps, &mut |_| {})?;
+    let mut start = crate::simulate::report::start_of(&header);
+    how(&mut start);
+    let trace = filters::run(map, field, mounts, &start, &steps, &mut |_| {})?;
     Ok((trace, steps, kept))
 }
 

@@ -354,6 +354,40 @@ pub struct Start {
     pub bank: Option<u8>,
 }
 
+/// The switches `simulate` takes for the filters (`--no-robust`,
+/// `--bank` …), the same whatever the readings' source (a simulated
+/// world or a lidar run).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Switches {
+    /// [`Start::recovery`].
+    pub recovery: bool,
+    /// [`Start::robust`].
+    pub robust: bool,
+    /// [`Start::calibration`].
+    pub calibration: bool,
+    /// [`Start::nearer_check`].
+    pub nearer_check: bool,
+    /// [`Start::particles`].
+    pub particles: bool,
+    /// [`Start::handoff_z`].
+    pub handoff_z: Option<f32>,
+    /// [`Start::bank`].
+    pub bank: Option<u8>,
+}
+
+impl Switches {
+    /// Sets them on `start`.
+    pub fn apply(&self, start: &mut Start) {
+        start.recovery = self.recovery;
+        start.robust = self.robust;
+        start.calibration = self.calibration;
+        start.nearer_check = self.nearer_check;
+        start.particles = self.particles;
+        start.handoff_z = self.handoff_z;
+        start.bank = self.bank;
+    }
+}
+
 impl Start {
     /// At `pose` with standard deviations `sigma`, every part of the EKF on.
     pub fn with_everything(pose: [f32; 3], sigma: [f32; 3]) -> Self {

@@ -170,9 +170,23 @@ pub fn simulate_cmd(a: &SimulateArgs) -> Result<String, LabError> {
         )));
     }
     let loaded = crate::map::load::load(&a.map, &a.grid.options(a.buffer_mm, true))?;
+    let switches = filters::Switches {
+        recovery: !a.no_recovery,
+        robust: !a.no_robust,
+        calibration: !a.no_calibration,
+        nearer_check: !a.no_nearer_check,
+        particles: !a.no_particles,
+        handoff_z: a.handoff_z,
+        bank: a.bank,
+    };
     if a.scans.from_scans.is_some() {
         if a.scenario.is_some() || !a.kidnap.is_empty() {
             return Err(LabError("--from-scans: --scenario and --kidnap do not apply to a lidar run".into()));
+        }
+        if a.only_consistent {
+            return Err(LabError(
+                "--from-scans: --only-consistent needs the simulator's own world (a lidar run's readings are not labelled consistent or not)".into(),
+            ));
         }
         let common = crate::from_scans::cli::Common {
             map: &a.map,
@@ -187,6 +201,7 @@ pub fn simulate_cmd(a: &SimulateArgs) -> Result<String, LabError> {
             mcap: a.mcap.clone(),
             bag: a.bag.clone(),
             readings_csv: a.readings_csv.clone(),
+            switches,
         };
         return crate::from_scans::cli::run(&common, &a.scans);
     }
@@ -215,18 +230,12 @@ pub fn simulate_cmd(a: &SimulateArgs) -> Result<String, LabError> {
         }
     }
     let mut start = filters::Start {
-        recovery: !a.no_recovery,
-        robust: !a.no_robust,
-        calibration: !a.no_calibration,
-        nearer_check: !a.no_nearer_check,
-        particles: !a.no_particles,
-        handoff_z: a.handoff_z,
-        bank: a.bank,
         seed: a.seed,
         snapshots: run.kidnaps.iter().map(|k| k.0).collect(),
         cycle_clouds: a.mcap.is_some(),
         ..start_of(&header)
     };
+    switches.apply(&mut start);
     apply_start(&mut start, start_arg);
     let trace = filters::run(&map, map.field(), &mounts, &start, &steps, &mut |f| bar.set(0.5 + 0.5 * f))
         .map_err(|e| LabError(format!("{}: {e}", a.map.display())))?;
