@@ -144,7 +144,7 @@ pub fn run(c: &Common<'_>, a: &ScansArgs) -> Result<String, LabError> {
             derive(&scans, rung, &inputs, &c.mounts, &opt).map_err(|e| LabError(format!("{}: {e}", path.display())))?;
         let how = |s: &mut crate::simulate::filters::Start| {
             s.seed = c.seed;
-            c.switches.apply(s);
+            s.switches = c.switches;
             crate::simulate::report::apply_start(s, c.start);
         };
         let (trace, steps, kept) = run_filters(&d, &view, view.field(), &c.mounts, c.loaded.crc(), how)

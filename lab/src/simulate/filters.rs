@@ -323,9 +323,6 @@ pub struct Start {
     /// What the localizer is told (the dead reckoning and the threshold
     /// method start at `pose` whatever this is).
     pub mode: StartMode,
-    /// Whether the localizer has particles to search with when lost (off:
-    /// the EKF alone, as before issue #27).
-    pub particles: bool,
     /// Seed of the particles' draws.
     pub seed: u64,
     /// Times (s) at which to keep the particle cloud.
@@ -333,6 +330,15 @@ pub struct Start {
     /// Whether to keep the cloud at every cycle's end that holds particles
     /// ([`Trace::cycle_clouds`]; 16 B a particle a cycle: for recordings).
     pub cycle_clouds: bool,
+    /// Which parts of the filters run.
+    pub switches: Switches,
+}
+
+/// The switches `simulate` takes for the filters (`--no-robust`,
+/// `--bank` …), the same whatever the readings' source (a simulated
+/// world or a lidar run).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Switches {
     /// Whether a lost EKF may recover (`echoloc::referencing::recovery`);
     /// off only to measure what recovery does.
     pub recovery: bool,
@@ -346,6 +352,9 @@ pub struct Start {
     /// (`PredictParams::nearer_delta_deg`, which makes echoes a nearer mapped
     /// surface may have returned inconclusive); off only to measure what it does.
     pub nearer_check: bool,
+    /// Whether the localizer has particles to search with when lost (off:
+    /// the EKF alone, as before issue #27).
+    pub particles: bool,
     /// The hand-off's margin over the hypothesis bank
     /// (`LocalizerConfig::handoff_z`); `None`: the default.
     pub handoff_z: Option<f32>,
@@ -354,38 +363,17 @@ pub struct Start {
     pub bank: Option<u8>,
 }
 
-/// The switches `simulate` takes for the filters (`--no-robust`,
-/// `--bank` …), the same whatever the readings' source (a simulated
-/// world or a lidar run).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Switches {
-    /// [`Start::recovery`].
-    pub recovery: bool,
-    /// [`Start::robust`].
-    pub robust: bool,
-    /// [`Start::calibration`].
-    pub calibration: bool,
-    /// [`Start::nearer_check`].
-    pub nearer_check: bool,
-    /// [`Start::particles`].
-    pub particles: bool,
-    /// [`Start::handoff_z`].
-    pub handoff_z: Option<f32>,
-    /// [`Start::bank`].
-    pub bank: Option<u8>,
-}
-
 impl Switches {
-    /// Sets them on `start`.
-    pub fn apply(&self, start: &mut Start) {
-        start.recovery = self.recovery;
-        start.robust = self.robust;
-        start.calibration = self.calibration;
-        start.nearer_check = self.nearer_check;
-        start.particles = self.particles;
-        start.handoff_z = self.handoff_z;
-        start.bank = self.bank;
-    }
+    /// Every part on, the defaults.
+    pub const EVERYTHING: Self = Self {
+        recovery: true,
+        robust: true,
+        calibration: true,
+        nearer_check: true,
+        particles: true,
+        handoff_z: None,
+        bank: None,
+    };
 }
 
 impl Start {
@@ -395,16 +383,10 @@ impl Start {
             pose,
             sigma,
             mode: StartMode::Known,
-            particles: true,
             seed: 1,
             snapshots: Vec::new(),
             cycle_clouds: false,
-            recovery: true,
-            handoff_z: None,
-            bank: None,
-            robust: true,
-            calibration: true,
-            nearer_check: true,
+            switches: Switches::EVERYTHING,
         }
     }
 }
@@ -465,7 +447,7 @@ fn f64x3(v: [f32; 3]) -> [f64; 3] {
 }
 
 /// Runs every step through the three estimates; the EKF inside the
-/// localizer (with [`PARTICLES`] particles, or none when `start.particles`
+/// localizer (with [`PARTICLES`] particles, or none when `start.switches.particles`
 /// is off) on the map's localization `field`.
 pub fn run<M: MapSource>(
     map: &M,
@@ -475,7 +457,7 @@ pub fn run<M: MapSource>(
     steps: &[Step],
     progress: &mut dyn FnMut(f64),
 ) -> Result<Trace, String> {
-    if start.particles {
+    if start.switches.particles {
         run_with::<M, PARTICLES>(map, field, mounts, start, steps, progress)
     } else {
         run_with::<M, 0>(map, field, mounts, start, steps, progress)
@@ -491,16 +473,16 @@ fn run_with<M: MapSource, const N: usize>(
     progress: &mut dyn FnMut(f64),
 ) -> Result<Trace, String> {
     let net = CredenceNet::shipped();
-    let params = predict_params_with(map.buffer_mm(), field, start.nearer_check);
+    let params = predict_params_with(map.buffer_mm(), field, start.switches.nearer_check);
     let verdicts = VerdictConfig::POLAROID;
     let mut cfg = EkfConfig::DEFAULT;
-    if !start.recovery {
+    if !start.switches.recovery {
         cfg.recovery = RecoveryConfig::OFF;
     }
-    if !start.robust {
+    if !start.switches.robust {
         cfg.robust_nis = f32::INFINITY;
     }
-    if !start.calibration {
+    if !start.switches.calibration {
         cfg.calibration = CalibrationConfig::OFF;
     }
     // Checked as `Ekf::new` checks it, for the message.
@@ -512,8 +494,8 @@ fn run_with<M: MapSource, const N: usize>(
     };
     let d = LocalizerConfig::DEFAULT;
     let lcfg = LocalizerConfig {
-        handoff_z: start.handoff_z.unwrap_or(d.handoff_z),
-        bank_keep: start.bank.unwrap_or(d.bank_keep),
+        handoff_z: start.switches.handoff_z.unwrap_or(d.handoff_z),
+        bank_keep: start.switches.bank.unwrap_or(d.bank_keep),
         ..d
     };
     let mut loc: Box<Localizer<N>> = Box::new(Localizer::new(lcfg, cfg, verdicts, start.seed));

@@ -233,9 +233,9 @@ pub fn simulate_cmd(a: &SimulateArgs) -> Result<String, LabError> {
         seed: a.seed,
         snapshots: run.kidnaps.iter().map(|k| k.0).collect(),
         cycle_clouds: a.mcap.is_some(),
+        switches,
         ..start_of(&header)
     };
-    switches.apply(&mut start);
     apply_start(&mut start, start_arg);
     let trace = filters::run(&map, map.field(), &mounts, &start, &steps, &mut |f| bar.set(0.5 + 0.5 * f))
         .map_err(|e| LabError(format!("{}: {e}", a.map.display())))?;
