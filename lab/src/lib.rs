@@ -53,23 +53,31 @@
 
 pub mod angle;
 pub mod bag;
+#[cfg(feature = "tool")]
 pub mod bench;
+#[cfg(feature = "tool")]
 pub mod board;
 pub mod credence;
 pub mod error;
 pub mod figure;
 pub mod files;
+#[cfg(feature = "tool")]
 pub mod foxglove;
+#[cfg(feature = "tool")]
 pub mod from_scans;
 pub mod lidar;
+#[cfg(feature = "tool")]
 pub mod link;
 pub mod log;
 pub mod map;
 pub mod predict;
+#[cfg(feature = "tool")]
 pub mod replay;
 pub mod ring;
 pub mod run_input;
+#[cfg(feature = "tool")]
 pub mod scenario;
+#[cfg(feature = "tool")]
 pub mod simulate;
 
 pub use error::LabError;
