@@ -79,6 +79,15 @@ fn a_lidar_run_becomes_a_map_and_a_sonar_run_echoloc_holds_on() {
         assert_eq!(o["readings"], v["readings"]);
         assert_ne!(o["ekf"]["position_rmse_m"], v["ekf"]["position_rmse_m"], "{switch} changed nothing");
     }
+
+    // The harsh sonar (issue #49 item 2) confirms far fewer readings at the
+    // true pose, and the furniture the laser missed is a large part of it.
+    let harsh = simulate(&[&run[..], &["--readings", "laser", "--sonar", "harsh"]].concat());
+    let ch = num(&harsh, "at_truth.confirmed_fraction");
+    assert!(ch < c / 2.0, "harsh {ch} against nominal {c}");
+    let bare =
+        simulate(&[&run[..], &["--readings", "laser", "--sonar", "harsh", "--harsh-without", "furniture"]].concat());
+    assert!(num(&bare, "at_truth.confirmed_fraction") > ch, "{} against {ch}", bare["at_truth"]);
 }
 
 #[test]
@@ -133,6 +142,10 @@ fn what_cannot_be_derived_is_refused_naming_why() {
     );
     // An oracle of the clutter needs readings labelled by the simulator's world.
     fails(&[&base[..], &["--pass", "0:20", "--map", s(&yaml), "--only-consistent"]].concat(), &["--only-consistent"]);
+    fails(
+        &[&base[..], &["--pass", "0:20", "--map", s(&yaml), "--harsh-without", "mirror"]].concat(),
+        &["--harsh-without", "nominal"],
+    );
     let not_a_log = tmp("real-bad", "notes.txt");
     std::fs::write(&not_a_log, "PARAM a b\nSYNC x\n").unwrap();
     fails(&["map", "from-scans", s(&not_a_log), "-o", s(&yaml)], &["notes.txt", "no laser scan"]);

@@ -64,6 +64,15 @@ pub struct ScansArgs {
     /// sends it back the same way (off: first bounces only).
     #[arg(long, value_enum, default_value = "on", requires = "from_scans")]
     pub multipath: OnOff,
+    /// The sonar that hears the scans: nominal (DESIGN §4.9) or harsh (a
+    /// less sensitive receiver, lossless mirrors, neighbours' crosstalk and
+    /// furniture the laser missed: docs/real-buildings.md, "A harsher sonar").
+    #[arg(long, value_enum, default_value = "nominal", requires = "from_scans")]
+    pub sonar: super::harsh::Sonar,
+    /// Leaves a part of the harsh sonar out (repeatable): threshold, mirror,
+    /// crosstalk or furniture.
+    #[arg(long = "harsh-without", value_enum, requires = "from_scans")]
+    pub harsh_without: Vec<super::harsh::Part>,
     /// The wheel odometry's errors: calibrated (UMBmark's correction: a
     /// tenth of the systematic errors) or uncalibrated (the simulator's).
     #[arg(long, value_enum, default_value = "calibrated", requires = "from_scans")]
@@ -128,6 +137,9 @@ pub fn run(c: &Common<'_>, a: &ScansArgs) -> Result<String, LabError> {
     let mut reports = Vec::new();
     let mut outputs: Vec<(PathBuf, Vec<u8>)> = Vec::new();
     let mut bag_rows: Option<Vec<crate::log::Row>> = None;
+    if a.sonar == super::harsh::Sonar::Nominal && !a.harsh_without.is_empty() {
+        return Err(LabError("--harsh-without leaves out a part of --sonar harsh; the nominal sonar has none".into()));
+    }
     for &rung in &rungs {
         let opt = super::DeriveOptions {
             seed: c.seed,
@@ -135,6 +147,7 @@ pub fn run(c: &Common<'_>, a: &ScansArgs) -> Result<String, LabError> {
             face_heard_at_1m_deg: a.heard_face_deg,
             uncovered: a.uncovered,
             multipath: a.multipath == OnOff::On,
+            harsh: super::harsh::Harsh::of(a.sonar, &a.harsh_without),
             odometry: match a.odometry {
                 OdometryKind::Calibrated => crate::simulate::world::OdometryModel::calibrated(),
                 OdometryKind::Uncalibrated => crate::simulate::world::OdometryModel::default(),

@@ -19,6 +19,7 @@
 
 pub mod cli;
 pub mod cone;
+pub mod harsh;
 pub mod path;
 pub mod sonar;
 pub mod surfaces;
@@ -39,6 +40,7 @@ use crate::simulate::filters::{self, predict_params, Start, Trace};
 use crate::simulate::world::{
     wrap, Beam, EchoKind, EchoSource, FiringPlan, Odometry, OdometryErrors, OdometryModel, SimReading, WorldConfig,
 };
+use harsh::{Harsh, Posts};
 use path::RunPath;
 use surfaces::Surfaces;
 
@@ -115,6 +117,8 @@ pub struct DeriveOptions {
     pub odometry: OdometryModel,
     /// Two-bounce echoes (a face mirrors the ping onto another).
     pub multipath: bool,
+    /// How much harsher than DESIGN §4.9's sonar ([`harsh`]).
+    pub harsh: Harsh,
 }
 
 impl Default for DeriveOptions {
@@ -126,6 +130,7 @@ impl Default for DeriveOptions {
             uncovered: Uncovered::Drop,
             odometry: OdometryModel::calibrated(),
             multipath: true,
+            harsh: Harsh::NOMINAL,
         }
     }
 }
@@ -197,6 +202,7 @@ pub fn derive(
     if !(opt.face_heard_at_1m_deg > 0.0 && opt.face_heard_at_1m_deg <= 60.0) {
         return Err(format!("--heard-face-deg {}: expected more than 0 and at most 60", opt.face_heard_at_1m_deg));
     }
+    opt.harsh.check()?;
     if run.scans.len() < 2 {
         return Err("a run needs at least two scans".into());
     }
@@ -246,16 +252,53 @@ pub fn derive(
             .flat_map(|(c, &t)| (0..plan.order.len()).map(move |s| (c as u32, s, t)))
             .collect(),
     };
-    let ears = sonar::Ears { surfaces: &surfaces, beam: &beam, plan: &plan, seed, multipath: opt.multipath };
+    let posts = if rung == Readings::Laser {
+        let path_m: f64 =
+            run.scans.windows(2).map(|w| (w[1].robot[0] - w[0].robot[0]).hypot(w[1].robot[1] - w[0].robot[1])).sum();
+        Posts::place(&run.scans, path_m, opt.harsh.furniture_per_m, seed)
+    } else {
+        Posts::none()
+    };
+    let ears = sonar::Ears {
+        surfaces: &surfaces,
+        beam: &beam,
+        plan: &plan,
+        seed,
+        multipath: opt.multipath,
+        harsh: opt.harsh,
+        posts: &posts,
+    };
+    let origin_of = |tr: usize, (x, y, h): (f64, f64, f64)| {
+        let m = mounts_m[tr];
+        ((x + h.cos() * m.0 - h.sin() * m.1, y + h.sin() * m.0 + h.cos() * m.1), h + m.2)
+    };
     let net = CredenceNet::shipped();
     let params = predict_params(map.view.buffer_mm(), map.view.field());
     let sound = plan.module.sound();
+    // A neighbour fired with firing `index` at `t` (harsh): the time, µs, at
+    // which its echo off what its own axis met reaches the listener at `o`.
+    let crosstalk = |index: u64, t: f64, tr: usize, pose: (f64, f64, f64), o: surfaces::P| -> Option<u32> {
+        let n = mounts_m.len();
+        if opt.harsh.crosstalk <= 0.0 || n < 2 {
+            return None;
+        }
+        let mut rng = Rng::substream(seed, harsh::STREAM_CROSSTALK.wrapping_add(index << 8));
+        if rng.next_f64() >= opt.harsh.crosstalk {
+            return None;
+        }
+        let j = if rng.next_f64() < 0.5 { (tr + 1) % n } else { (tr + n - 1) % n };
+        let (o_j, axis_j) = origin_of(j, pose);
+        // The neighbour's own ping: its own draws (a sub-stream no firing uses).
+        let heard = ears.ping(index | 1 << 62, t, o_j, axis_j);
+        let r_j = f64::from(heard.echo_us?) * 1e-6 * beam.c / 2.0;
+        let us = (2.0 * harsh::crosstalk_range_m(o, o_j, axis_j, r_j) / beam.c * 1e6).floor();
+        (us >= f64::from(plan.min_echo_us()) && us <= f64::from(plan.window_us())).then_some(us as u32)
+    };
     let one = |k: usize| -> Result<(SimReading, bool), String> {
         let (c, s, t) = firings[k];
         let tr = plan.order[s];
         let (x, y, h) = path.traj.pose(t);
-        let m = mounts_m[usize::from(tr)];
-        let o = (x + h.cos() * m.0 - h.sin() * m.1, y + h.sin() * m.0 + h.cos() * m.1);
+        let (o, axis) = origin_of(usize::from(tr), (x, y, h));
         let (echo_us, source, covered) = if rung == Readings::Predicted {
             let pose = Pose { x_mm: (x * 1000.0) as f32, y_mm: (y * 1000.0) as f32, heading_rad: h as f32 };
             let (p, _) = predict_mount(map.view, &pose, &mounts[usize::from(tr)], &params, &net)
@@ -268,8 +311,13 @@ pub fn derive(
             let src = if us.is_some() { EchoSource::World { kind: EchoKind::Face } } else { EchoSource::None };
             (us.filter(|&u| u >= plan.min_echo_us() && u <= plan.window_us()), src, 1.0)
         } else {
-            let p = ears.ping(k as u64, t, o, h + m.2);
-            (p.echo_us, p.source, p.covered)
+            let p = ears.ping(k as u64, t, o, axis);
+            let cross = crosstalk(k as u64, t, usize::from(tr), (x, y, h), o);
+            match (p.echo_us, cross) {
+                (Some(e), Some(c)) if c < e => (Some(c), EchoSource::Crosstalk, p.covered),
+                (None, Some(c)) => (Some(c), EchoSource::Crosstalk, p.covered),
+                _ => (p.echo_us, p.source, p.covered),
+            }
         };
         let odo = odometry.pose(t);
         Ok((

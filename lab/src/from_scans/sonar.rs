@@ -15,6 +15,7 @@ use crate::simulate::world::{
     point_key, wrap, Beam, Draws, EchoKind, EchoSource, FiringPlan, Listener, FAN_HALF_DEG, RAY_STEP_DEG,
 };
 
+use super::harsh::{Harsh, Posts, POST_LOSS_DB};
 use super::surfaces::{Surfaces, P};
 
 /// The main lobe the coverage is judged on, degrees (the first null, DESIGN §6).
@@ -42,6 +43,10 @@ pub struct Ears<'a> {
     /// Whether a ray mirrored by a face may come back off a second one
     /// (multipath: the long readings a sonar gives along a wall).
     pub multipath: bool,
+    /// How much harsher than DESIGN §4.9's sonar ([`Harsh::NOMINAL`]: not at all).
+    pub harsh: Harsh,
+    /// What the laser plane missed ([`Posts::none`] unless harsh).
+    pub posts: &'a Posts,
 }
 
 /// One ping's outcome.
@@ -95,6 +100,8 @@ impl Ears<'_> {
         let rmax = self.beam.max_range(self.plan);
         let cands = self.nearest(t);
         let rays: Vec<(P, usize)> = ear.rays().collect();
+        // A less sensitive receiver: every echo this much weaker.
+        let deaf = self.harsh.threshold_db;
         // Per ray: the scan that saw it, and its hit there.
         let mut chosen: Vec<Option<(usize, Option<super::surfaces::SurfaceHit>)>> = vec![None; rays.len()];
         let (mut lobe, mut lobe_seen) = (0usize, 0usize);
@@ -123,7 +130,7 @@ impl Ears<'_> {
                     h.r,
                     h.normal,
                     s.key ^ (u64::from(h.surface) << 20),
-                    0.0,
+                    deaf,
                     EchoSource::World { kind: EchoKind::Face },
                 );
                 // Multipath: the ray mirrored by this face, heard back off a
@@ -140,7 +147,7 @@ impl Ears<'_> {
                             h.r + 0.01 + h2.r,
                             h2.normal,
                             s.key ^ (u64::from(h2.surface) << 20) ^ 0xB0,
-                            BOUNCE_LOSS_DB,
+                            self.harsh.bounce_loss_db + deaf,
                             EchoSource::World { kind: EchoKind::Face },
                         );
                     }
@@ -173,8 +180,26 @@ impl Ears<'_> {
                     continue;
                 }
                 if let Some((term, kind)) = Listener::point_term(pe.wedge_deg, rv) {
-                    ear.hear_point(v, term, point_key(v), EchoSource::World { kind });
+                    ear.hear_point(v, term - deaf, point_key(v), EchoSource::World { kind });
                 }
+            }
+        }
+        // Posts the laser missed, where the ray at their bearing saw some
+        // scan at least as far (behind a nearer surface they are not heard).
+        for v in self.posts.near(o, rmax) {
+            let rv = (v.0 - o.0).hypot(v.1 - o.1);
+            let th = wrap((v.1 - o.1).atan2(v.0 - o.0) - axis).to_degrees();
+            if rv > rmax || rv <= 0.0 || th.abs() > FAN_HALF_DEG {
+                continue;
+            }
+            let j = ((th + FAN_HALF_DEG) / RAY_STEP_DEG).round() as usize;
+            let open = match chosen.get(j).copied().flatten() {
+                Some((_, h)) => h.is_none_or(|h| h.r >= rv),
+                None => false,
+            };
+            if open {
+                let term = -POST_LOSS_DB - 20.0 * rv.max(0.1).log10() - deaf;
+                ear.hear_point(v, term, point_key(v) ^ 0x9057, EchoSource::Unmapped);
             }
         }
         let (echo_us, source) = ear.reading(self.plan);
@@ -203,7 +228,15 @@ mod tests {
     fn pings(s: &[Surfaces], o: P, deg: f64) -> Vec<(Option<u32>, f64)> {
         let plan = FiringPlan::new(1, None).unwrap();
         let beam = Beam::new(20.0, 50.0).with_specular_width(2.8);
-        let ears = Ears { surfaces: s, beam: &beam, plan: &plan, seed: 7, multipath: false };
+        let ears = Ears {
+            surfaces: s,
+            beam: &beam,
+            plan: &plan,
+            seed: 7,
+            multipath: false,
+            harsh: Harsh::NOMINAL,
+            posts: &Posts::none(),
+        };
         (0..20)
             .map(|k| {
                 let p = ears.ping(k, 0.0, o, deg.to_radians());
@@ -270,7 +303,15 @@ mod tests {
         let plan = FiringPlan::new(1, None).unwrap();
         let beam = Beam::new(20.0, 50.0).with_specular_width(2.8);
         let read = |multipath: bool| -> Vec<Option<u32>> {
-            let ears = Ears { surfaces: &s, beam: &beam, plan: &plan, seed: 3, multipath };
+            let ears = Ears {
+                surfaces: &s,
+                beam: &beam,
+                plan: &plan,
+                seed: 3,
+                multipath,
+                harsh: Harsh::NOMINAL,
+                posts: &Posts::none(),
+            };
             (0..20)
                 .map(|k| ears.ping(k, 0.0, (0.0, 0.0), 45f64.to_radians()).echo_us.map(|u| plan.range_mm(u)))
                 .collect()

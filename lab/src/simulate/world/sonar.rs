@@ -145,6 +145,19 @@ impl Beam {
             - 20.0 * libm::log10((r / GAIN_FULL_RANGE_M).max(1.0))
     }
 
+    /// The specular lobe's term for a face met `incidence_deg` off its normal, dB.
+    fn specular_db(&self, incidence_deg: f64) -> f64 {
+        let w = self.specular_width_deg;
+        -20.0 / std::f64::consts::LN_10 * incidence_deg * incidence_deg / (2.0 * w * w)
+    }
+
+    /// Level above the threshold of a flat face `r` m away, `off_axis` rad
+    /// off the beam's axis, met `incidence_deg` off its normal, before the
+    /// noise, dB (the module's formula).
+    pub fn face_level_db(&self, r: f64, off_axis: f64, incidence_deg: f64) -> f64 {
+        self.base_db(r, self.dir_at(off_axis)) + self.specular_db(incidence_deg)
+    }
+
     /// Longest one-way path worth tracing for `plan`'s listening window, m.
     pub fn max_range(&self, plan: &FiringPlan) -> f64 {
         self.c * f64::from(plan.window_us()) * 1e-6 / 2.0 + 0.05
@@ -262,8 +275,7 @@ impl<'b> Listener<'b> {
         let base = self.beam.base_db(r, self.beam.dir_db[k]);
         let cos_a = -(d.0 * normal.0 + d.1 * normal.1);
         let alpha = libm::acos(cos_a.abs().min(1.0)).to_degrees();
-        let w = self.beam.specular_width_deg;
-        let specular = -20.0 / std::f64::consts::LN_10 * alpha * alpha / (2.0 * w * w);
+        let specular = self.beam.specular_db(alpha);
         let level = base + specular - loss_db + self.draws.fluctuation(surface) - self.draws.threshold_db;
         self.offer(r, level, source);
     }
