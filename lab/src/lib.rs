@@ -48,6 +48,12 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 //!
+//! Cargo features: `tool` (default) is the whole command line; without it
+//! (`default-features = false`) the library is the input readers (maps,
+//! logs, bags, lidar runs), prediction, rings and the credence net, without
+//! the simulator, the boards, the link, replay, Foxglove and the benchmarks
+//! or their dependencies (the fuzz targets build it so).
+//!
 //! The small host program `examples/verdicts.rs` does this from the command
 //! line: `cargo run -p echoloc-lab --example verdicts -- MAP x,y,θ R0,R1,…`.
 
