@@ -11,7 +11,9 @@
 #   OUT=dir bash scripts/real-buildings.sh  # the maps elsewhere (two runs side by side)
 #   bash scripts/real-buildings.sh --seeds 10 [simulate args]   # the laser rung, seeds 1..10, every
 #                                             # building, both firings: a line a run, then a summary
-#                                             # (e.g. --heard-face-deg 15: another conversion's physics)
+#                                             # (e.g. --heard-face-deg 15: another conversion's physics;
+#                                             # --sonar harsh: issue #49's harsher sonar)
+#   bash scripts/real-buildings.sh --harsh-parts   # what each part of --sonar harsh adds, seed 1, a table
 set -euo pipefail
 cd "$(dirname "$0")/.."
 data=../shared/data/real
@@ -50,11 +52,34 @@ if [ "${1:-}" = "--seeds" ]; then
 import json, sys
 r = json.load(sys.stdin); e = r['ekf']; l = r['localization']
 print('$name', '$fire', $seed, e['position_rmse_m'], e['heading_rmse_deg'], e['max_position_error_m'], l['off_fraction'],
-      l['off_cycles_known'] if l['off_cycles_known'] is not None else '-', r['verdicts']['confirmed_fraction'])"
+      l['off_cycles_known'] if l['off_cycles_known'] is not None else '-', r['verdicts']['confirmed_fraction'], r['at_truth']['confirmed_fraction'])"
       done
     done
-  done | tee /dev/stderr | awk '{ k = $1 " " $2; n[k]++; if ($4 <= 0.15 && $5 <= 2.0 && $7 <= 0.01) ok[k]++; s[k] += $4; h[k] += $5; if ($4 > w[k]) w[k] = $4 }
-    END { for (k in n) printf "%s: %d runs, %d within 15 cm, 2 deg and 1 %% off; mean RMSE %.3f m, %.2f deg; worst %.3f m\n", k, n[k], ok[k], s[k] / n[k], h[k] / n[k], w[k] }' | sort
+  done | tee /dev/stderr | awk '{ k = $1 " " $2; n[k]++; if ($4 <= 0.15 && $5 <= 2.0 && $7 <= 0.01) ok[k]++; s[k] += $4; h[k] += $5; if ($4 > w[k]) w[k] = $4;
+    c[k] += $10; if (!(k in lo) || $10 < lo[k]) lo[k] = $10; if ($10 > hi[k]) hi[k] = $10 }
+    END { for (k in n) printf "%s: %d runs, %d within 15 cm, 2 deg and 1 %% off; mean RMSE %.3f m, %.2f deg; worst %.3f m; confirmed at truth %.3f (%.3f-%.3f)\n", k, n[k], ok[k], s[k] / n[k], h[k] / n[k], w[k], c[k] / n[k], lo[k], hi[k] }' | sort
+  exit 0
+fi
+
+if [ "${1:-}" = "--harsh-parts" ]; then
+  # What each part of --sonar harsh adds (docs/real-buildings.md, "A harsher
+  # sonar"): seed 1 along the path, nominal, harsh, and harsh without each part.
+  printf "| building | sonar | confirmed at truth | EKF position RMSE (m) | heading RMSE (deg) | cycles > 0.5 m off |\n|---|---|---|---|---|---|\n"
+  for s in "${splits[@]}"; do
+    read -r name file map_pass run_pass <<<"$s"
+    $L map from-scans "$data/$file" --pass "$map_pass" -o "$out/$name.yaml" >/dev/null
+    for sonar in "nominal" "harsh" "harsh --harsh-without threshold" "harsh --harsh-without mirror" \
+      "harsh --harsh-without crosstalk" "harsh --harsh-without furniture"; do
+      # shellcheck disable=SC2086 # the words of $sonar are options
+      $L simulate --from-scans "$data/$file" --pass "$run_pass" --map "$out/$name.yaml" --walls "$walls" \
+        --seed 1 --json --sonar $sonar |
+        python3 -c "
+import json, sys
+r = json.load(sys.stdin); e = r['ekf']
+print('| $name | $sonar | %.3f | %.2f | %.1f | %.1f %% |' % (r['at_truth']['confirmed_fraction'], e['position_rmse_m'],
+      e['heading_rmse_deg'], 100 * r['localization']['off_fraction']))"
+    done
+  done
   exit 0
 fi
 
