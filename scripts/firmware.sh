@@ -7,8 +7,15 @@ cd "$(dirname "$0")/.."
 bash scripts/setup.sh
 
 target=thumbv7em-none-eabihf
-out=$(cargo run -q -p qemu-mps2-an386 --target "$target" --release)
+# Its findings are printed whether it passes or not: a failing run's FAIL
+# lines are the reason (under `set -e` a bare `out=$(…)` would exit first).
+status=0
+out=$(cargo run -q -p qemu-mps2-an386 --target "$target" --release) || status=$?
 echo "$out"
+if [ "$status" -ne 0 ]; then
+  echo "FAIL: the firmware run exited with status $status (its lines above say why)" >&2
+  exit "$status"
+fi
 echo
 echo "budgets (issue #11) against the committed snapshot:"
 bash scripts/metrics.sh <<<"$out"
