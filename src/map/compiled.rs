@@ -478,7 +478,7 @@ fn check_header(blob: &[u8]) -> Result<&[u8], BlobError> {
     if blob.as_ptr() as usize % 4 != 0 {
         return Err(BlobError::Misaligned);
     }
-    match super::blob::check_header(blob, COMPILED_VERSION) {
+    match super::header::check_header(blob, COMPILED_VERSION) {
         Err(BlobError::UnsupportedVersion(OUTDATED_VERSION)) => {
             Err(BlobError::Outdated { version: OUTDATED_VERSION, current: COMPILED_VERSION })
         }
@@ -573,7 +573,7 @@ impl<const PIECES: usize, const VERTS: usize, const CELLS: usize, const REFS: us
         }
         field.write(&mut put);
         let crc = super::crc32(out.get(BLOB_HEADER_LEN..).unwrap_or(&[]));
-        super::blob::write_header(out, COMPILED_VERSION, need - BLOB_HEADER_LEN, crc);
+        super::header::write_header(out, COMPILED_VERSION, need - BLOB_HEADER_LEN, crc);
         Ok(need)
     }
 

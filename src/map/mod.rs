@@ -21,12 +21,14 @@ mod crc32;
 #[cfg_attr(not(test), deny(clippy::indexing_slicing))]
 pub mod field;
 mod grid;
+mod header;
 mod source;
 
-pub use blob::{BlobError, EncodeError, BLOB_HEADER_LEN, BLOB_MAGIC, BLOB_VERSION};
+pub use blob::{EncodeError, BLOB_VERSION};
 pub use compiled::{Aligned, MapView, COMPILED_VERSION};
 pub use crc32::{crc32, Crc32};
 pub use field::{Expected, FieldParts, FieldView};
+pub use header::{BlobError, BLOB_HEADER_LEN, BLOB_MAGIC};
 pub use source::MapSource;
 
 use heapless::Vec;
