@@ -61,6 +61,10 @@ pub struct Harsh {
     pub furniture_per_m: f64,
 }
 
+/// Loss of a mirror bounce on the way of a two-bounce echo in the nominal
+/// sonar, dB. *Model assumption*: a painted wall reflects nearly all of a
+/// 49 kHz ping.
+pub const BOUNCE_LOSS_DB: f64 = 1.0;
 /// Loss of a post (a chair leg, a table's edge below the laser) against a
 /// face at normal incidence at 1 m, dB; it falls off as a point target
 /// (20·log₁₀ r more). *Model assumption*: a leg 2-4 cm across is a weak
@@ -79,7 +83,7 @@ pub const STREAM_CROSSTALK: u64 = 0x5C_0005;
 impl Harsh {
     /// The nominal derivation: nothing harsher than DESIGN §4.9's sonar.
     pub const NOMINAL: Harsh =
-        Harsh { threshold_db: 0.0, bounce_loss_db: super::sonar::BOUNCE_LOSS_DB, crosstalk: 0.0, furniture_per_m: 0.0 };
+        Harsh { threshold_db: 0.0, bounce_loss_db: BOUNCE_LOSS_DB, crosstalk: 0.0, furniture_per_m: 0.0 };
     /// The harsh setting, calibrated on Intel, ACES and Freiburg 079
     /// (docs/real-buildings.md, "A harsher sonar").
     pub const HARSH: Harsh = Harsh { threshold_db: 30.0, bounce_loss_db: 0.0, crosstalk: 0.15, furniture_per_m: 8.0 };

@@ -30,9 +30,6 @@ const MAX_AGE_S: f64 = 120.0;
 const SEEN_STEP_M: f64 = 0.1;
 /// The part of a ray before its hit that need not be seen, m (the hit's own neighbourhood).
 const HIT_SLACK_M: f64 = 0.05;
-/// Loss of a mirror bounce on the way of a two-bounce echo, dB. *Model
-/// assumption*: a painted wall reflects nearly all of a 49 kHz ping.
-pub const BOUNCE_LOSS_DB: f64 = 1.0;
 
 /// Scans sorted by time, and the sonar to hear them with.
 pub struct Ears<'a> {
