@@ -295,16 +295,7 @@ mod tests {
                 (3.0 / b.cos()) as f32
             })
             .collect();
-        let scan = Scan {
-            time_s: 0.0,
-            robot: [0.0, 0.0, 0.0],
-            laser: [0.0, 0.0, 0.0],
-            odometry: None,
-            angle_min: -std::f64::consts::FRAC_PI_4,
-            angle_step: 0.5f64.to_radians(),
-            ranges,
-            line: 0,
-        };
+        let scan = Scan::taken_at([0.0; 3], -std::f64::consts::FRAC_PI_4, 0.5f64.to_radians(), ranges);
         let posts = Posts::place(&[scan], 50.0, 1.0, 9);
         assert_eq!(posts.len(), 50);
         for p in &posts.at {

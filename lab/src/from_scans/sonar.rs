@@ -273,16 +273,7 @@ mod tests {
                     .fold(f64::INFINITY, f64::min) as f32
             })
             .collect();
-        let scan = Scan {
-            time_s: 0.0,
-            robot: [0.0, 0.0, 0.0],
-            laser: [0.0, 0.0, 0.0],
-            odometry: None,
-            angle_min: -std::f64::consts::FRAC_PI_2,
-            angle_step: 0.5f64.to_radians(),
-            ranges,
-            line: 0,
-        };
+        let scan = Scan::taken_at([0.0; 3], -std::f64::consts::FRAC_PI_2, 0.5f64.to_radians(), ranges);
         Surfaces::of_scan(&scan, 0.0, 1, &|_| true)
     }
 

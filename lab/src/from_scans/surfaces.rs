@@ -381,16 +381,7 @@ mod tests {
                     .fold(f64::INFINITY, f64::min) as f32
             })
             .collect();
-        Scan {
-            time_s: 0.0,
-            robot: [o.0, o.1, 0.0],
-            laser: [o.0, o.1, 0.0],
-            odometry: None,
-            angle_min: -std::f64::consts::FRAC_PI_2,
-            angle_step: 1f64.to_radians(),
-            ranges,
-            line: 0,
-        }
+        Scan::taken_at([o.0, o.1, 0.0], -std::f64::consts::FRAC_PI_2, 1f64.to_radians(), ranges)
     }
 
     /// An inside corner at (3, 2) between walls x = 3 and y = 2, and a box

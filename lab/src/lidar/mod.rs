@@ -43,6 +43,16 @@ pub struct Scan {
     pub line: u64,
 }
 
+#[cfg(test)]
+impl Scan {
+    /// A scan taken at time 0 from `pose` (x, y, heading; the laser at the
+    /// robot's centre), its first beam `angle_min` off the heading and the
+    /// others `angle_step` apart (the tests' scans of hand-made walls).
+    pub(crate) fn taken_at(pose: [f64; 3], angle_min: f64, angle_step: f64, ranges: Vec<f32>) -> Self {
+        Scan { time_s: 0.0, robot: pose, laser: pose, odometry: None, angle_min, angle_step, ranges, line: 0 }
+    }
+}
+
 impl Scan {
     /// Bearing of beam `i` from the laser's axis, rad.
     pub fn bearing(&self, i: usize) -> f64 {
