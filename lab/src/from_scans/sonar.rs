@@ -160,15 +160,7 @@ impl Ears<'_> {
         for k in heard {
             for pe in &self.surfaces[k].points {
                 let v = pe.at;
-                let rv = (v.0 - o.0).hypot(v.1 - o.1);
-                if rv > rmax {
-                    continue;
-                }
-                let th = wrap((v.1 - o.1).atan2(v.0 - o.0) - axis).to_degrees();
-                if th.abs() > FAN_HALF_DEG {
-                    continue;
-                }
-                let j = ((th + FAN_HALF_DEG) / RAY_STEP_DEG).round() as usize;
+                let Some((rv, j)) = in_fan(o, axis, v, rmax) else { continue };
                 let visible = match chosen.get(j).copied().flatten() {
                     Some((kk, h)) => kk == k && h.is_none_or(|h| h.r >= rv - capture(rv)),
                     None => false,
@@ -184,12 +176,7 @@ impl Ears<'_> {
         // Posts the laser missed, where the ray at their bearing saw some
         // scan at least as far (behind a nearer surface they are not heard).
         for v in self.posts.near(o, rmax) {
-            let rv = (v.0 - o.0).hypot(v.1 - o.1);
-            let th = wrap((v.1 - o.1).atan2(v.0 - o.0) - axis).to_degrees();
-            if rv > rmax || rv <= 0.0 || th.abs() > FAN_HALF_DEG {
-                continue;
-            }
-            let j = ((th + FAN_HALF_DEG) / RAY_STEP_DEG).round() as usize;
+            let Some((rv, j)) = in_fan(o, axis, v, rmax).filter(|&(rv, _)| rv > 0.0) else { continue };
             let open = match chosen.get(j).copied().flatten() {
                 Some((_, h)) => h.is_none_or(|h| h.r >= rv),
                 None => false,
@@ -202,6 +189,14 @@ impl Ears<'_> {
         let (echo_us, source) = ear.reading(self.plan);
         Ping { echo_us, source, covered: if lobe == 0 { 0.0 } else { lobe_seen as f64 / lobe as f64 } }
     }
+}
+
+/// A point reflector at `v` heard from `o` facing `axis`: its range and the
+/// fan's ray at its bearing, if it is within `rmax` and the fan.
+fn in_fan(o: P, axis: f64, v: P, rmax: f64) -> Option<(f64, usize)> {
+    let rv = (v.0 - o.0).hypot(v.1 - o.1);
+    let th = wrap((v.1 - o.1).atan2(v.0 - o.0) - axis).to_degrees();
+    (rv <= rmax && th.abs() <= FAN_HALF_DEG).then(|| (rv, ((th + FAN_HALF_DEG) / RAY_STEP_DEG).round() as usize))
 }
 
 /// The angle of ray `i` off the axis, degrees (the simulator's fan).
