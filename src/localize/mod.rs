@@ -12,6 +12,8 @@
 //! | [`scan`] | [`Sweep`]: the search's proposals, every heading of a sweep of free nodes scored cheaply against the cycle's readings |
 //! | [`history`] | [`History`]: the last cycles' readings in the current frame, to verify the search's proposals on |
 //! | [`hypotheses`] | [`Bank`]: the places still plausible besides the cluster, each with the cluster's lead over it summed since it was proposed; the hand-off's margin |
+//! | [`null`] | [`NullModel`]: the null hypothesis, "none of these places": the readings scored by their own recent mix |
+//! | [`sprt`] | [`Sprt`]: Wald's sequential test on the evidence between two hypotheses, each reading's share clipped |
 //! | [`rng`] | [`Rng`]: xoshiro128++, uniform and approximately normal draws |
 //!
 //! Everything is `f32`, allocation-free, and held by the caller: a
@@ -37,9 +39,11 @@ pub mod history;
 pub mod hypotheses;
 pub mod localizer;
 pub mod measure;
+pub mod null;
 pub mod particles;
 pub mod rng;
 pub mod scan;
+pub mod sprt;
 
 /// Two poses are one hypothesis within a metre and 20° of each other: the
 /// sweep keeps its spread proposals this far apart, the verification calls
@@ -54,6 +58,8 @@ pub use history::History;
 pub use hypotheses::{Bank, Hypothesis, Proposal, BANK};
 pub use localizer::{CycleReport, LocalizeError, Localizer, LocalizerConfig, LocalizerCounts, Mode, Start, MAX_SENSED};
 pub use measure::{Measure, Sensed};
+pub use null::NullModel;
 pub use particles::{kld_bound, Cluster, McConfig, MotionNoise, ParticleError, ParticleSet, Weighed};
 pub use rng::Rng;
 pub use scan::{Candidate, ScanConfig, Sweep};
+pub use sprt::{Decision, Sprt, SprtError};
