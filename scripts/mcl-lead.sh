@@ -8,7 +8,13 @@
 # (lab/examples/mcl_probe.rs). A sample of wrong places, not the sweep's:
 # the lead it reports is an upper bound on the lead over every wrong place.
 #
-#   bash scripts/mcl-lead.sh [--seeds N] [--maps "depot bookstore"] [--clutter "0.5 0.7"] [--import "ARGS"]
+#   bash scripts/mcl-lead.sh [--seeds N] [--maps "depot bookstore"] [--clutter "0.5 0.7"] [--import "ARGS"] [--null]
+#
+# --null (issue #48): instead, the null hypothesis's table: at the first
+# report past 30 m, the truth's and the best wrong place's summed lead over
+# the null (localize/null.rs), with the beam model as the particles score
+# by it and with a reading the place expects nothing of scored as the null
+# scores it (HYBRID).
 #
 # --import: each map compiled first by `echoloc-lab map import MAP.yaml ARGS`
 # (e.g. --import "--field-fallback-deg 60") into target/mcl-lead/.
@@ -18,13 +24,15 @@ seeds=10
 maps="depot bookstore tb3_sandbox"
 clutter="0.5 0.7"
 import=
+null=
 while [ $# -gt 0 ]; do
   case "$1" in
     --seeds) seeds=$2; shift 2 ;;
     --maps) maps=$2; shift 2 ;;
     --clutter) clutter=$2; shift 2 ;;
     --import) import=$2; shift 2 ;;
-    *) echo "usage: bash scripts/mcl-lead.sh [--seeds N] [--maps \"…\"] [--clutter \"…\"] [--import \"ARGS\"]" >&2; exit 2 ;;
+    --null) null=1; shift ;;
+    *) echo "usage: bash scripts/mcl-lead.sh [--seeds N] [--maps \"…\"] [--clutter \"…\"] [--import \"ARGS\"] [--null]" >&2; exit 2 ;;
   esac
 done
 source scripts/lab-tool.sh
@@ -44,6 +52,16 @@ for map in $maps; do
   fi
   for inc in $clutter; do
     for seed in $(seq 1 "$seeds"); do
+      if [ -n "$null" ]; then
+        for scoring in beam hybrid; do
+          # The probe takes HYBRID's presence, whatever its value.
+          hybrid=(); [ "$scoring" = hybrid ] && hybrid=(HYBRID=1)
+          line=$(env "${hybrid[@]}" NTRAJ=3000 "$lab_dir/examples/mcl_probe" "$src" "$seed" "$inc" \
+            | awk '/^null after/ && $(NF-1) + 0 >= 30 && !done {print; done = 1}')
+          echo "$map $inc $seed $scoring $line" | tee -a "$rows" >&2
+        done
+        continue
+      fi
       out=$(NTRAJ=20000 "$lab_dir/examples/mcl_probe" "$src" "$seed" "$inc" | grep '^lead after' || true)
       l10=$(awk '/after 10 cycles/ {print $5}' <<<"$out")
       l40=$(awk '/after 40 cycles/ {print $5}' <<<"$out")
@@ -54,6 +72,25 @@ for map in $maps; do
     done
   done
 done
+if [ -n "$null" ]; then
+  python3 - "$rows" <<'PY'
+import sys, re, statistics
+groups = {}
+for l in open(sys.argv[1]):
+    w = l.split()
+    m = re.search(r"truth - null ([-0-9.]+) nats \(([-0-9.]+) clipped.*best wrong place - null ([-0-9.]+);.*travelled ([0-9.]+) m", l)
+    if not m:
+        continue
+    t, tc, w_, d = (float(x) for x in m.groups())
+    groups.setdefault((w[0], w[1], w[3]), []).append((t, tc, w_, d))
+print("| map | clutter | scoring | seeds | truth ahead of the null | truth − null: median (min) | clipped at 2 nats: median (min) | best wrong place − null: median (max) |")
+print("|---|---|---|---|---|---|---|---|")
+for (m, inc, sc), v in groups.items():
+    t = [r[0] for r in v]; tc = [r[1] for r in v]; w = [r[2] for r in v]
+    print(f"| {m} | {inc} | {sc} | {len(v)} | {sum(x > 0 for x in t)} | {statistics.median(t):.0f} ({min(t):.0f}) | {statistics.median(tc):.0f} ({min(tc):.0f}) | {statistics.median(w):.0f} ({max(w):.0f}) |")
+PY
+  exit 0
+fi
 python3 - "$rows" <<'PY'
 import sys, math, statistics
 rows = [l.split() for l in open(sys.argv[1]) if l.strip()]

@@ -14,7 +14,11 @@
 //! `MISS`, `UNP`, `HIT` (the beam model's other settings), `NTRAJ` (random
 //! trajectories), `V` (per-cycle lines), `DIAG` (after 40 cycles, the
 //! readings by what they are at the truth, hit, short, long, unpredicted,
-//! miss, nothing, and the truth's lead over the best wrong place on each).
+//! miss, nothing, and the truth's lead over the best wrong place on each),
+//! `CLIP`, `NULL_MEMORY`, `HYBRID` (the null hypothesis's settings; with
+//! `HYBRID` a reading where a place expects nothing scores as the null
+//! scores it: every 10 cycles
+//! the truth's and the best wrong place's summed lead over it).
 #![allow(clippy::needless_range_loop)]
 use echoloc::localize::{FieldLookup, McConfig, ParticleSet, Rng, Sensed};
 use echoloc::referencing::Reading;
@@ -42,6 +46,7 @@ fn main() {
     let hit = env("HIT", mc.beam.sure_mix[0]);
     mc.beam.sure_mix = [hit, (1.0 - hit) * 0.66, (1.0 - hit) * 0.34];
     let mut kept: Vec<(Vec<Sensed>, [f32; 3])> = Vec::new();
+    let mut kept_null: Vec<Vec<f32>> = Vec::new();
     let mut best40: Option<[f32; 3]> = None;
     let mut stats = (0usize, 0usize, 0f64, 0f64, 0f64, 0f64);
     let sound = echoloc::driver::SpeedOfSound::from_um_per_s(run.sound.um_per_s()).unwrap();
@@ -74,6 +79,17 @@ fn main() {
         [2.0 * c[0] - truth0[0], 2.0 * c[1] - truth0[1], truth0[2] + std::f32::consts::PI]
     });
     let mut acc_alias = 0f32;
+    // The null hypothesis (issue #48): the readings scored by their own
+    // recent mix; the truth's summed lead over it, raw and with each
+    // reading's log-ratio clipped to ±CLIP nats.
+    let mut null = echoloc::localize::NullModel::new(mc.beam.r_min_mm, mc.beam.r_max_mm, env("NULL_MEMORY", 400.0));
+    let clip = env("CLIP", 2.0);
+    let hybrid = std::env::var("HYBRID").is_ok();
+    let (mut acc_null, mut truth_null_clipped) = (0f32, 0f32);
+    // A plainer null beside it: the echo rate so far (the same estimator
+    // over two bins), an echo's range uniform over the window.
+    let (mut echoes, mut misses, mut acc_plain) = (0f32, 0f32, 0f32);
+    let span_m = (mc.beam.r_max_mm - mc.beam.r_min_mm) * 1e-3;
     let temper = env("TEMPER", 1.0);
     // The distance the truth has travelled, m (the leads' x axis in metres).
     let (mut travelled, mut last) = (0f32, truth0);
@@ -110,21 +126,57 @@ fn main() {
                 Sensed { pose, reading }
             })
             .collect();
+        let mut null_lls = Vec::with_capacity(sensed.len());
+        for r in &sensed {
+            let n = null.log_likelihood(r.reading);
+            null_lls.push(n);
+            acc_null += n;
+            match r.reading {
+                Reading::Echo { range_mm } if (range_mm as f32) <= mc.beam.r_max_mm => {
+                    acc_plain += ((echoes + 0.5) / (echoes + misses + 1.0) / span_m).ln();
+                    echoes += 1.0;
+                }
+                Reading::Invalid => {}
+                _ => {
+                    acc_plain += ((misses + 0.5) / (echoes + misses + 1.0)).ln();
+                    misses += 1.0;
+                }
+            }
+            if r.reading != Reading::Invalid {
+                let (s, co) = (t0[2].sin(), t0[2].cos());
+                let tx = t0[0] + co * r.pose[0] - s * r.pose[1];
+                let ty = t0[1] + s * r.pose[0] + co * r.pose[1];
+                let e = lookup.expected(tx * 1e3, ty * 1e3, t0[2] + r.pose[2]);
+                let own = if hybrid && e == Some(echoloc::map::field::Expected::Nothing) {
+                    n
+                } else {
+                    mc.beam.likelihood(r.reading, e).ln()
+                };
+                truth_null_clipped += (own - n).clamp(-clip, clip);
+            }
+        }
+        // HYBRID: a reading where the place expects nothing scores as the
+        // null scores it (the place neither gains nor loses on it).
         let ll = |p: &[f32; 3]| -> f32 {
             let (s, co) = (p[2].sin(), p[2].cos());
             let mut l = 0.0;
-            for r in &sensed {
+            for (i, r) in sensed.iter().enumerate() {
                 let tx = p[0] + co * r.pose[0] - s * r.pose[1];
                 let ty = p[1] + s * r.pose[0] + co * r.pose[1];
                 let e = lookup.expected(tx * 1e3, ty * 1e3, p[2] + r.pose[2]);
                 if r.reading != Reading::Invalid {
-                    l += mc.beam.likelihood(r.reading, e).ln();
+                    l += if hybrid && e == Some(echoloc::map::field::Expected::Nothing) {
+                        null_lls[i]
+                    } else {
+                        mc.beam.likelihood(r.reading, e).ln()
+                    };
                 }
             }
             l
         };
         let lt = ll(&t0);
         kept.push((sensed.clone(), t0));
+        kept_null.push(null_lls.clone());
         // The truth's motion since the start, in the start's frame, applied to each random start.
         let (s0, c0) = (truth0[2].sin(), truth0[2].cos());
         let (gx, gy) = (t0[0] - truth0[0], t0[1] - truth0[1]);
@@ -181,6 +233,15 @@ fn main() {
             if c + 1 == 40 {
                 best40 = wrong.map(|&k| starts[k]);
             }
+            println!(
+                "null after {} cycles: truth - null {:.1} nats ({:.1} clipped at {clip}); best wrong place - null {:.1}; against the plain null: truth {:.1}, best wrong place {:.1}; travelled {travelled:.1} m",
+                c + 1,
+                acc_truth - acc_null,
+                truth_null_clipped,
+                wrong.map_or(f32::NAN, |&k| acc[k] - acc_null),
+                acc_truth - acc_plain,
+                wrong.map_or(f32::NAN, |&k| acc[k] - acc_plain)
+            );
             if let Some(&k) = wrong {
                 println!(
                     "lead after {} cycles: {:.1} nats over the best wrong place ({:.1} nats); travelled {travelled:.1} m",
@@ -220,14 +281,16 @@ fn main() {
         // Per category of the reading at the truth: count, Σ(ll truth − ll wrong).
         let names = ["hit", "short", "long", "unpredicted", "miss", "none", "off"];
         let mut agg = [(0usize, 0f64); 7];
+        // Over every cycle: the truth's lead over the null by category.
+        let mut agg_null = [(0usize, 0f64); 7];
         let (s0, c0) = (truth0[2].sin(), truth0[2].cos());
         let b = &mc.beam;
-        for (sensed, t0) in kept.iter().take(40) {
+        for (ci, (sensed, t0)) in kept.iter().enumerate() {
             let (gx, gy) = (t0[0] - truth0[0], t0[1] - truth0[1]);
             let rel = [c0 * gx + s0 * gy, -s0 * gx + c0 * gy, t0[2] - truth0[2]];
             let (s1, c1) = (st[2].sin(), st[2].cos());
             let pw = [st[0] + c1 * rel[0] - s1 * rel[1], st[1] + s1 * rel[0] + c1 * rel[1], st[2] + rel[2]];
-            for r in sensed {
+            for (ri, r) in sensed.iter().enumerate() {
                 if r.reading == Reading::Invalid {
                     continue;
                 }
@@ -260,12 +323,19 @@ fn main() {
                         }
                     }
                 };
-                agg[cat].0 += 1;
-                agg[cat].1 += d;
+                agg_null[cat].0 += 1;
+                agg_null[cat].1 += (b.likelihood(r.reading, et).ln() - kept_null[ci][ri]) as f64;
+                if ci < 40 {
+                    agg[cat].0 += 1;
+                    agg[cat].1 += d;
+                }
             }
         }
         for (k, n) in names.iter().enumerate() {
-            println!("diag {n:12} {:5} readings  truth - wrong {:8.1} nats", agg[k].0, agg[k].1);
+            println!(
+                "diag {n:12} {:5} readings  truth - wrong {:8.1} nats; every cycle: {:5} readings, truth - null {:8.1} nats",
+                agg[k].0, agg[k].1, agg_null[k].0, agg_null[k].1
+            );
         }
     }
     let _ = filters::PARTICLES;

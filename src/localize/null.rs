@@ -210,7 +210,9 @@ mod tests {
     /// A bad window or memory falls back to what works, never a NaN.
     #[test]
     fn bad_settings_fall_back() {
-        for (a, b, m) in [(5500.0, 408.0, 400.0), (f32::NAN, 5500.0, 400.0), (408.0, 5500.0, f32::NAN), (408.0, 5500.0, -1.0)] {
+        for (a, b, m) in
+            [(5500.0, 408.0, 400.0), (f32::NAN, 5500.0, 400.0), (408.0, 5500.0, f32::NAN), (408.0, 5500.0, -1.0)]
+        {
             let mut null = NullModel::new(a, b, m);
             for r in [Reading::NoEcho, echo(1000), echo(0), echo(u32::MAX)] {
                 assert!(null.log_likelihood(r).is_finite());
