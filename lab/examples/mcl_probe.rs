@@ -15,10 +15,10 @@
 //! trajectories), `V` (per-cycle lines), `DIAG` (after 40 cycles, the
 //! readings by what they are at the truth, hit, short, long, unpredicted,
 //! miss, nothing, and the truth's lead over the best wrong place on each),
-//! `CLIP`, `NULL_MEMORY`, `HYBRID` (the null hypothesis's settings; with
-//! `HYBRID` a reading where a place expects nothing scores as the null
-//! scores it: every 10 cycles
-//! the truth's and the best wrong place's summed lead over it).
+//! `CLIP`, `NULL_MEMORY`, `HYBRID` (the null hypothesis's settings, and
+//! with `HYBRID` a reading where a place expects nothing scores as the
+//! null scores it; every 10 cycles, the truth's and the best wrong
+//! place's summed lead over the null).
 #![allow(clippy::needless_range_loop)]
 use echoloc::localize::{FieldLookup, McConfig, ParticleSet, Rng, Sensed};
 use echoloc::referencing::Reading;
@@ -142,39 +142,32 @@ fn main() {
                     misses += 1.0;
                 }
             }
-            if r.reading != Reading::Invalid {
-                let (s, co) = (t0[2].sin(), t0[2].cos());
-                let tx = t0[0] + co * r.pose[0] - s * r.pose[1];
-                let ty = t0[1] + s * r.pose[0] + co * r.pose[1];
-                let e = lookup.expected(tx * 1e3, ty * 1e3, t0[2] + r.pose[2]);
-                let own = if hybrid && e == Some(echoloc::map::field::Expected::Nothing) {
-                    n
-                } else {
-                    mc.beam.likelihood(r.reading, e).ln()
-                };
-                truth_null_clipped += (own - n).clamp(-clip, clip);
-            }
         }
-        // HYBRID: a reading where the place expects nothing scores as the
+        // Each reading's log-likelihood at pose `p` (`None`: invalid). With
+        // HYBRID a reading where the place expects nothing scores as the
         // null scores it (the place neither gains nor loses on it).
-        let ll = |p: &[f32; 3]| -> f32 {
+        let each = |p: [f32; 3]| {
             let (s, co) = (p[2].sin(), p[2].cos());
-            let mut l = 0.0;
-            for (i, r) in sensed.iter().enumerate() {
+            sensed.iter().zip(&null_lls).map(move |(r, &n)| {
                 let tx = p[0] + co * r.pose[0] - s * r.pose[1];
                 let ty = p[1] + s * r.pose[0] + co * r.pose[1];
                 let e = lookup.expected(tx * 1e3, ty * 1e3, p[2] + r.pose[2]);
-                if r.reading != Reading::Invalid {
-                    l += if hybrid && e == Some(echoloc::map::field::Expected::Nothing) {
-                        null_lls[i]
+                (r.reading != Reading::Invalid).then(|| {
+                    if hybrid && e == Some(echoloc::map::field::Expected::Nothing) {
+                        n
                     } else {
                         mc.beam.likelihood(r.reading, e).ln()
-                    };
-                }
-            }
-            l
+                    }
+                })
+            })
         };
+        let ll = |p: &[f32; 3]| -> f32 { each(*p).flatten().sum() };
         let lt = ll(&t0);
+        for (own, &n) in each(t0).zip(&null_lls) {
+            if let Some(own) = own {
+                truth_null_clipped += (own - n).clamp(-clip, clip);
+            }
+        }
         kept.push((sensed.clone(), t0));
         kept_null.push(null_lls.clone());
         // The truth's motion since the start, in the start's frame, applied to each random start.
