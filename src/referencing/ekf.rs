@@ -17,7 +17,9 @@
 //! ```
 
 use super::calibration::{CalibrationConfig, OdometryCalibration, Standing};
-use super::model::{compose, range_model, wrap, Motion, MountM, Target};
+pub use super::gaussian::MAX_POSITION_M;
+use super::gaussian::{in_range, Correction, PoseGaussian};
+use super::model::{range_model, wrap, Motion, MountM, Target};
 use super::recovery::{Found, Recent, RecoveryConfig};
 use crate::f32math::sqrt;
 
@@ -142,14 +144,6 @@ pub enum EkfError {
     OutOfRange,
 }
 
-/// The largest position the filter holds, m: the map's coordinate range
-/// (`geometry::COORD_MAX`, 2³⁰ − 1 mm ≈ 1 074 km) rounded down.
-pub const MAX_POSITION_M: f32 = 1.0e6;
-
-fn in_range(x: &[f32; 3]) -> bool {
-    x.iter().all(|v| v.is_finite()) && x[0].abs() <= MAX_POSITION_M && x[1].abs() <= MAX_POSITION_M
-}
-
 /// What one range update did.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -186,8 +180,7 @@ pub struct CycleUpdates {
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Ekf {
-    x: [f32; 3],
-    p: [[f32; 3]; 3],
+    g: PoseGaussian,
     cfg: EkfConfig,
     cycle: CycleUpdates,
     bad_run: u16,
@@ -206,29 +199,6 @@ pub struct Ekf {
     calibration: OdometryCalibration,
 }
 
-type M3 = [[f32; 3]; 3];
-
-fn mul(a: &M3, b: &M3) -> M3 {
-    let mut r = [[0.0; 3]; 3];
-    for i in 0..3 {
-        for j in 0..3 {
-            r[i][j] = a[i][0] * b[0][j] + a[i][1] * b[1][j] + a[i][2] * b[2][j];
-        }
-    }
-    r
-}
-
-fn mul_t(a: &M3, b: &M3) -> M3 {
-    // a · bᵀ
-    let mut r = [[0.0; 3]; 3];
-    for i in 0..3 {
-        for j in 0..3 {
-            r[i][j] = a[i][0] * b[j][0] + a[i][1] * b[j][1] + a[i][2] * b[j][2];
-        }
-    }
-    r
-}
-
 impl Ekf {
     /// A filter at pose `x` (m, m, rad) with standard deviations `sigma`.
     // Inlined so the caller builds the filter where it keeps it: out of
@@ -244,10 +214,10 @@ impl Ekf {
             return Err(EkfError::OutOfRange);
         }
         let mut e = Self::origin(cfg);
-        for (i, (row, s)) in e.p.iter_mut().zip(sigma).enumerate() {
+        for (i, (row, s)) in e.g.p.iter_mut().zip(sigma).enumerate() {
             row[i] = crate::f32math::clamp(s * s, cfg.min_var[i], cfg.max_var[i]);
         }
-        e.x = [x[0], x[1], wrap(x[2])];
+        e.g.x = [x[0], x[1], wrap(x[2])];
         Ok(e)
     }
 
@@ -265,8 +235,8 @@ impl Ekf {
         if !in_range(&x) {
             return Err(EkfError::OutOfRange);
         }
-        self.x = [x[0], x[1], wrap(x[2])];
-        self.p = p;
+        self.g.x = [x[0], x[1], wrap(x[2])];
+        self.g.p = p;
         self.cycle = CycleUpdates::default();
         self.bad_run = 0;
         self.lost = false;
@@ -298,8 +268,7 @@ impl Ekf {
             row[i] = crate::f32math::clamp(1.0, cfg.min_var[i], cfg.max_var[i]);
         }
         Self {
-            x: [0.0; 3],
-            p,
+            g: PoseGaussian::new([0.0; 3], p),
             cfg,
             cycle: CycleUpdates::default(),
             bad_run: 0,
@@ -317,12 +286,12 @@ impl Ekf {
 
     /// The state (x m, y m, φ rad).
     pub fn state(&self) -> [f32; 3] {
-        self.x
+        self.g.x
     }
 
     /// The covariance.
     pub fn covariance(&self) -> [[f32; 3]; 3] {
-        self.p
+        self.g.p
     }
 
     /// The settings.
@@ -338,37 +307,14 @@ impl Ekf {
         }
         let raw = u;
         let u = &self.calibration.corrected(raw);
-        let (next, f, g) = compose(&self.x, u);
-        if !in_range(&next) {
-            return Err(EkfError::OutOfRange);
-        }
-        self.calibration.take(&self.cfg.calibration, raw, self.x[2]);
         let d = sqrt(u.dx * u.dx + u.dy * u.dy);
         let turn = libm::fabsf(u.dphi);
         let c = &self.cfg;
         let q = [c.var_per_m * d, c.var_side_per_m * d, c.var_heading_per_rad * turn + c.var_heading_per_m * d];
-        // F = I but for column 2 (a, b): F P Fᵀ is a row and a column operation.
-        let (a, b) = (f[0][2], f[1][2]);
-        let p = &mut self.p;
-        let r2 = p[2];
-        for (j, v) in r2.iter().enumerate() {
-            p[0][j] += a * v;
-            p[1][j] += b * v;
-        }
-        for row in p.iter_mut() {
-            row[0] += a * row[2];
-            row[1] += b * row[2];
-        }
-        // G = rotation by φ (and 1): G Q Gᵀ for a diagonal Q.
-        let (cs, sn) = (g[0][0], g[1][0]);
-        let cross = cs * sn * (q[0] - q[1]);
-        p[0][0] += cs * cs * q[0] + sn * sn * q[1];
-        p[1][1] += sn * sn * q[0] + cs * cs * q[1];
-        p[0][1] += cross;
-        p[1][0] += cross;
-        p[2][2] += q[2];
+        let heading = self.g.x[2];
+        let (a, b) = self.g.propagate(u, q)?;
+        self.calibration.take(&self.cfg.calibration, raw, heading);
         self.recent.carry(a, b);
-        self.x = next;
         self.condition();
         Ok(())
     }
@@ -379,65 +325,29 @@ impl Ekf {
         if !(z.is_finite() && kappa.is_finite()) {
             return Update::Unusable;
         }
-        let Some((h, hj)) = range_model(&self.x, mount, target) else { return Update::Unusable };
+        let Some((h, hj)) = range_model(&self.g.x, mount, target) else { return Update::Unusable };
         let mut s2 = self.cfg.sigma_range_m * self.cfg.sigma_range_m / kappa.max(self.cfg.kappa_floor);
         if let Target::Point { .. } = target {
             s2 *= self.cfg.point_variance_scale;
         }
-        // P Hᵀ and S = H P Hᵀ + R.
-        let mut ph = [0.0f32; 3];
-        for (i, row) in self.p.iter().enumerate() {
-            ph[i] = row[0] * hj[0] + row[1] * hj[1] + row[2] * hj[2];
-        }
-        let s = hj[0] * ph[0] + hj[1] * ph[1] + hj[2] * ph[2] + s2;
         let nu = z - h;
-        if !s.is_finite() || s <= 0.0 {
+        let c = self.g.correct(nu, hj, s2, self.cfg.gate, self.cfg.robust_nis);
+        if c == Correction::Unusable {
             return Update::Unusable;
         }
-        let nis = nu * nu / s;
         self.cycle.tested = self.cycle.tested.saturating_add(1);
         self.recent.push(hj, nu, s2);
-        if nis.is_nan() || nis > self.cfg.gate {
-            return Update::Gated { innovation: nu, nis };
-        }
-        self.cycle.accepted = self.cycle.accepted.saturating_add(1);
-        // Huber: past `robust_nis`, the reading's variance is inflated until
-        // its normalised innovation is `robust_nis`.
-        let (s, s2) = if nis > self.cfg.robust_nis {
-            let wide = nu * nu / self.cfg.robust_nis;
-            (wide, s2 + (wide - s))
-        } else {
-            (s, s2)
-        };
-        let k = [ph[0] / s, ph[1] / s, ph[2] / s];
-        // Joseph form: P ← (I − K H) P (I − K H)ᵀ + K R Kᵀ.
-        let mut ikh = [[0.0f32; 3]; 3];
-        for i in 0..3 {
-            for j in 0..3 {
-                ikh[i][j] = if i == j { 1.0 } else { 0.0 } - k[i] * hj[j];
+        match c {
+            Correction::Accepted { nis, dx } => {
+                self.cycle.accepted = self.cycle.accepted.saturating_add(1);
+                self.recent.shift(dx);
+                self.condition();
+                Update::Accepted { innovation: nu, nis }
             }
+            Correction::Gated { nis } => Update::Gated { innovation: nu, nis },
+            // Overflow on absurd inputs: the reading refused, the filter kept.
+            Correction::Refused { .. } | Correction::Unusable => Update::Unusable,
         }
-        let a = mul_t(&mul(&ikh, &self.p), &ikh);
-        let dx = [k[0] * nu, k[1] * nu, k[2] * nu];
-        let mut next = self.x;
-        for (xi, d) in next.iter_mut().zip(dx) {
-            *xi += d;
-        }
-        next[2] = wrap(next[2]);
-        if !in_range(&next) || !a.iter().flatten().all(|v| v.is_finite()) {
-            // Overflow on absurd inputs: refuse the reading, keep the filter.
-            self.cycle.accepted = self.cycle.accepted.saturating_sub(1);
-            return Update::Unusable;
-        }
-        for i in 0..3 {
-            for j in 0..3 {
-                self.p[i][j] = a[i][j] + k[i] * s2 * k[j];
-            }
-        }
-        self.x = next;
-        self.recent.shift(dx);
-        self.condition();
-        Update::Accepted { innovation: nu, nis }
     }
 
     /// Ends a ring cycle: the lost monitor looks at the cycle's gate counts.
@@ -446,7 +356,7 @@ impl Ekf {
         self.recent.rebase();
         let c = self.cycle;
         self.cycle = CycleUpdates::default();
-        let sigma = sqrt(self.p[0][0] + self.p[1][1]);
+        let sigma = sqrt(self.g.p[0][0] + self.g.p[1][1]);
         let tested = c.tested >= self.cfg.lost_min_tested;
         let frac = if c.tested == 0 { 0.0 } else { c.accepted as f32 / c.tested as f32 };
         let mut dropped = false;
@@ -486,7 +396,7 @@ impl Ekf {
         if self.lost {
             self.cycles_lost = self.cycles_lost.saturating_add(1);
             let f = self.cfg.lost_inflation;
-            for row in self.p.iter_mut() {
+            for row in self.g.p.iter_mut() {
                 for v in row.iter_mut() {
                     *v *= f;
                 }
@@ -498,7 +408,7 @@ impl Ekf {
             (false, 0) => Standing::Sure,
             (false, _) => Standing::Doubtful,
         };
-        self.calibration.end_cycle(&self.cfg.calibration, self.x[2], sqrt(self.p[2][2]), standing);
+        self.calibration.end_cycle(&self.cfg.calibration, self.g.x[2], sqrt(self.g.p[2][2]), standing);
         c
     }
 
@@ -514,7 +424,7 @@ impl Ekf {
     #[inline(never)]
     fn recover(&mut self) {
         let Some(found) = self.recent.search(&self.cfg.recovery) else { return };
-        let mut next = self.x;
+        let mut next = self.g.x;
         for (xi, d) in next.iter_mut().zip(found.dx) {
             *xi += d;
         }
@@ -528,8 +438,8 @@ impl Ekf {
         for i in 0..3 {
             p[i][i] = found.covariance[i][i].max(floor[i]);
         }
-        self.x = next;
-        self.p = p;
+        self.g.x = next;
+        self.g.p = p;
         self.recent.shift(found.dx);
         self.recoveries = self.recoveries.saturating_add(1);
         self.last_recovery = Some(found);
@@ -565,66 +475,7 @@ impl Ekf {
     /// Symmetric, diagonal within its bounds, and every correlation below 1,
     /// so P stays positive definite in `f32`.
     fn condition(&mut self) {
-        for i in 0..3 {
-            let d = self.p[i][i];
-            self.p[i][i] = if d.is_finite() {
-                crate::f32math::clamp(d, self.cfg.min_var[i], self.cfg.max_var[i])
-            } else {
-                self.cfg.max_var[i]
-            };
-        }
-        for i in 0..3 {
-            for j in (i + 1)..3 {
-                let mut v = 0.5 * (self.p[i][j] + self.p[j][i]);
-                if !v.is_finite() {
-                    v = 0.0;
-                }
-                // |ρ| ≤ 0.999, compared in squares: the root only when clamping.
-                let lim2 = 0.998 * self.p[i][i] * self.p[j][j];
-                if v * v > lim2 {
-                    v = if v < 0.0 { -sqrt(lim2) } else { sqrt(lim2) };
-                }
-                self.p[i][j] = v;
-                self.p[j][i] = v;
-            }
-        }
-        // Pairwise bounds do not make a 3×3 matrix definite: factor it as
-        // L D Lᵀ and shrink the correlations until every pivot keeps a
-        // margin of its variance (a determinant's sign is lost to rounding
-        // when P is nearly singular; pivots with a margin are not).
-        for _ in 0..8 {
-            if pivots_ok(&self.p) {
-                return;
-            }
-            for i in 0..3 {
-                for j in 0..3 {
-                    if i != j {
-                        self.p[i][j] *= 0.5;
-                    }
-                }
-            }
-        }
-        for i in 0..3 {
-            for j in 0..3 {
-                if i != j {
-                    self.p[i][j] = 0.0;
-                }
-            }
-        }
+        self.g.condition(&self.cfg.min_var, &self.cfg.max_var);
     }
 }
 
-/// Every pivot of P = L D Lᵀ at least 10⁻⁴ of its diagonal entry: P is
-/// positive definite with room for `f32` rounding.
-fn pivots_ok(p: &M3) -> bool {
-    const MARGIN: f32 = 1e-4;
-    let d0 = p[0][0];
-    let (l10, l20) = (p[1][0] / d0, p[2][0] / d0);
-    let d1 = p[1][1] - l10 * p[1][0];
-    if d1.is_nan() || d1 <= MARGIN * p[1][1] {
-        return false;
-    }
-    let l21 = (p[2][1] - l20 * p[1][0]) / d1;
-    let d2 = p[2][2] - l20 * p[2][0] - l21 * l21 * d1;
-    d0 > 0.0 && d2 > MARGIN * p[2][2]
-}
