@@ -376,3 +376,121 @@ fn a_blob_of_the_version_before_the_field_is_refused_as_outdated() {
     let mut m: Box<echoloc::map::StandardMap> = Box::default();
     assert_eq!(m.load(bytes), Err(BlobError::Outdated { version: 2, current: 3 }));
 }
+
+/// The field's slope (`FieldLookup::expected_slope`, what a place the
+/// localizer keeps corrects its pose by) against central differences of
+/// the lookup's own ranges, 10 mm either side, at points well inside a
+/// cell (the interpolant is bilinear there, its central differences
+/// exact; nearer steps lose to `f32`'s rounding of positions 30 m from the
+/// origin: 0.004 mm); and, as a plane's range seen
+/// square-on is its perpendicular distance, the slopes are unit vectors
+/// (the median within 5 % of 1).
+#[test]
+fn the_fields_slope_is_the_derivative_of_its_ranges() {
+    let depot = Depot::load();
+    let map = depot.view();
+    let lookup = FieldLookup::new(map.field());
+    let h = *map.field().header();
+    let node = h.node_mm as f32;
+    const H: f32 = 10.0;
+    let mut rng = Rng::new(11);
+    let (mut checked, mut norms, mut worst) = (0, Vec::new(), 0.0f32);
+    let range = |x: f32, y: f32, phi: f32| match lookup.expected_slope(x, y, phi) {
+        Some((Expected::Echo { range_mm, .. }, Some(_))) => Some(range_mm),
+        _ => None,
+    };
+    for _ in 0..4000 {
+        let p = ParticleSet::<0>::free_pose(&mut rng, &lookup).unwrap();
+        let (x, y) = (p[0] * 1e3, p[1] * 1e3);
+        let (fu, fv) = (((x - h.origin_x as f32) / node).fract(), ((y - h.origin_y as f32) / node).fract());
+        if !(0.15..0.85).contains(&fu) || !(0.15..0.85).contains(&fv) {
+            continue;
+        }
+        let Some((Expected::Echo { range_mm, .. }, Some(g))) = lookup.expected_slope(x, y, p[2]) else { continue };
+        assert_eq!(
+            lookup.expected(x, y, p[2]),
+            Some(Expected::Echo {
+                range_mm,
+                sure: matches!(lookup.expected(x, y, p[2]), Some(Expected::Echo { sure: true, .. }))
+            })
+        );
+        let (Some(xp), Some(xm), Some(yp), Some(ym)) =
+            (range(x + H, y, p[2]), range(x - H, y, p[2]), range(x, y + H, p[2]), range(x, y - H, p[2]))
+        else {
+            continue;
+        };
+        let fd = [(xp - xm) / (2.0 * H), (yp - ym) / (2.0 * H)];
+        worst = worst.max((fd[0] - g[0]).abs()).max((fd[1] - g[1]).abs());
+        norms.push(g[0].hypot(g[1]));
+        checked += 1;
+    }
+    assert!(checked >= 500, "only {checked} interpolated points checked");
+    assert!(worst < 2e-3, "slope against central differences: worst {worst}");
+    norms.sort_by(f32::total_cmp);
+    let median = norms[norms.len() / 2];
+    assert!((median - 1.0).abs() < 0.05, "median |slope| {median}");
+}
+
+/// A place scores each reading against the null as the shared model says:
+/// where the field expects nothing it gains and loses nothing (an echo
+/// there is scored as the null scores it), a reading on the predicted
+/// range gains and one far from it loses, an invalid one says nothing;
+/// its own correction moves it toward the range read; null scores not one
+/// per reading are refused with the place unchanged.
+#[test]
+fn a_place_scores_readings_against_the_null_and_corrects_itself() {
+    use echoloc::localize::place::{Place, PlaceError, Tracking};
+    let depot = Depot::load();
+    let map = depot.view();
+    let lookup = FieldLookup::new(map.field());
+    let beam = BeamModel::DEFAULT;
+    let cfg = EkfConfig::DEFAULT;
+    let t = Tracking { lookup: &lookup, beam: &beam, ekf: &cfg, clip: 5.0 };
+    let still = Motion::default();
+    // A free pose with a heading the field expects nothing of and one it
+    // expects a sure plane echo of (the forward transducer, no offset).
+    let mut rng = Rng::new(3);
+    let (pose, nothing, (phi, r)) = (0..1000)
+        .find_map(|_| {
+            let p = ParticleSet::<0>::free_pose(&mut rng, &lookup).unwrap();
+            // Facing +x: a transducer's heading is then its own.
+            let pose = [p[0], p[1], 0.0];
+            let (mut nothing, mut echo) = (None, None);
+            for k in 0..180 {
+                let phi = (2.0 * k as f32).to_radians();
+                match lookup.expected_slope(pose[0] * 1e3, pose[1] * 1e3, phi) {
+                    Some((Expected::Nothing, _)) => nothing = nothing.or(Some(phi)),
+                    Some((Expected::Echo { range_mm, sure: true }, Some(_))) if range_mm > 1500.0 => {
+                        echo = echo.or(Some((phi, range_mm)))
+                    }
+                    _ => {}
+                }
+            }
+            Some((pose, nothing?, echo?))
+        })
+        .expect("a pose that hears nothing one way and a plane another");
+    let sense = |phi: f32, reading| [Sensed { pose: [0.0, 0.0, phi], reading }];
+    let null = [-1.6f32];
+    let fresh = || Place::new(pose, [0.05, 0.05, 0.02], &cfg).unwrap();
+    let mut p = fresh();
+    let c = p.cycle(&sense(nothing, Reading::Echo { range_mm: 2000 }), &null, &still, &t).unwrap();
+    assert_eq!((c.evidence, c.tested), (0.0, 0), "unpredicted echo: {c:?}");
+    let c = p.cycle(&sense(phi, Reading::Invalid), &null, &still, &t).unwrap();
+    assert_eq!((c.evidence, c.tested), (0.0, 0));
+    // On the predicted range, 20 mm long: it gains, is taken, and the
+    // pose moves away from the plane by a share of the 20 mm.
+    let before = p.pose();
+    let c = p.cycle(&sense(phi, Reading::Echo { range_mm: (r + 20.0) as u32 }), &null, &still, &t).unwrap();
+    assert!(c.evidence > 0.5 && (c.tested, c.accepted) == (1, 1), "{c:?}");
+    let (dx, dy) = (p.pose()[0] - before[0], p.pose()[1] - before[1]);
+    let moved = dx * phi.cos() + dy * phi.sin();
+    assert!(moved < -0.001 && moved > -0.021, "moved {moved} m along the beam");
+    // 1 m short of it: it loses and the gate refuses it.
+    let mut q = fresh();
+    let c = q.cycle(&sense(phi, Reading::Echo { range_mm: (r - 1000.0) as u32 }), &null, &still, &t).unwrap();
+    assert!(c.evidence < 0.0 && (c.tested, c.accepted) == (1, 0), "{c:?}");
+    assert_eq!(q.pose(), pose);
+    let before = q;
+    assert_eq!(q.cycle(&sense(phi, Reading::NoEcho), &[], &still, &t), Err(PlaceError::Mismatch));
+    assert_eq!(q, before);
+}

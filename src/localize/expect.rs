@@ -88,6 +88,24 @@ impl<'f, 'a> FieldLookup<'f, 'a> {
     // caller) it cost the M4's searching cycle 2 % more (issue #36).
     #[inline(never)]
     pub fn expected(&self, x_mm: f32, y_mm: f32, heading_rad: f32) -> Option<Expected> {
+        self.look::<false>(x_mm, y_mm, heading_rad).map(|(e, _)| e)
+    }
+
+    /// [`FieldLookup::expected`] and, where the four corners see one plane
+    /// (the range interpolated), the range's slope by the transducer's
+    /// position (∂r/∂x, ∂r/∂y: mm per mm, a unit vector away from a plane
+    /// seen square-on). A place the localizer keeps corrects its pose by it
+    /// (`super::place`); `None` where the nearest corner's prediction is
+    /// taken, whose range does not vary smoothly.
+    #[inline(never)]
+    pub fn expected_slope(&self, x_mm: f32, y_mm: f32, heading_rad: f32) -> Option<(Expected, Option<[f32; 2]>)> {
+        self.look::<true>(x_mm, y_mm, heading_rad)
+    }
+
+    /// The lookup, the slope computed only when `SLOPE` (the particles'
+    /// lookup stays as short as it was).
+    #[inline(always)]
+    fn look<const SLOPE: bool>(&self, x_mm: f32, y_mm: f32, heading_rad: f32) -> Option<(Expected, Option<[f32; 2]>)> {
         let (i, j, fu, fv) = self.cell(x_mm, y_mm)?;
         let d = self.dir(heading_rad);
         let f = self.field;
@@ -104,16 +122,24 @@ impl<'f, 'a> FieldLookup<'f, 'a> {
         {
             let lo = a.min(b).min(c).min(e);
             if sa == sb && sa == sc && sa == se && (a + e - b - c).abs() <= AGREE_MM + AGREE_REL * lo {
-                let r = a + (b - a) * fu + (c - a) * fv + (a + e - b - c) * fu * fv;
-                return Some(Expected::Echo { range_mm: r, sure: sa });
+                let twist = a + e - b - c;
+                let r = a + (b - a) * fu + (c - a) * fv + twist * fu * fv;
+                // (Not `then_some`: its argument is built even when unused.)
+                let slope = if SLOPE {
+                    Some([((b - a) + twist * fv) * self.inv_node, ((c - a) + twist * fu) * self.inv_node])
+                } else {
+                    None
+                };
+                return Some((Expected::Echo { range_mm: r, sure: sa }, slope));
             }
         }
-        match (fu < 0.5, fv < 0.5) {
+        let nearest = match (fu < 0.5, fv < 0.5) {
             (true, true) => e00,
             (false, true) => e10,
             (true, false) => e01,
             (false, false) => e11,
-        }
+        };
+        nearest.map(|e| (e, None))
     }
 
     /// Whether the robot's centre may stand at (`x_mm`, `y_mm`): the nearest

@@ -12,6 +12,7 @@
 //! | [`scan`] | [`Sweep`]: the search's proposals, every heading of a sweep of free nodes scored cheaply against the cycle's readings |
 //! | [`history`] | [`History`]: the last cycles' readings in the current frame, to verify the search's proposals on |
 //! | [`hypotheses`] | [`Bank`]: the places still plausible besides the cluster, each with the cluster's lead over it summed since it was proposed; the hand-off's margin |
+//! | [`place`] | [`Place`]: a place that tracks itself, its own Kalman filter corrected by the field's plane ranges and gradients, with its evidence over the null since it was born |
 //! | [`null`] | [`NullModel`]: the null hypothesis, "none of these places": the readings scored by their own recent mix |
 //! | [`sprt`] | [`Sprt`]: Wald's sequential test on the evidence between two hypotheses, each reading's share clipped |
 //! | [`rng`] | [`Rng`]: xoshiro128++, uniform and approximately normal draws |
@@ -41,6 +42,7 @@ pub mod localizer;
 pub mod measure;
 pub mod null;
 pub mod particles;
+pub mod place;
 pub mod rng;
 pub mod scan;
 pub mod sprt;
@@ -60,6 +62,7 @@ pub use localizer::{CycleReport, LocalizeError, Localizer, LocalizerConfig, Loca
 pub use measure::{Measure, Sensed};
 pub use null::NullModel;
 pub use particles::{kld_bound, Cluster, McConfig, MotionNoise, ParticleError, ParticleSet, Weighed};
+pub use place::{Place, PlaceCycle, PlaceError, Tracking};
 pub use rng::Rng;
 pub use scan::{Candidate, ScanConfig, Sweep};
 pub use sprt::{Decision, Sprt, SprtError};

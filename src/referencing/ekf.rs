@@ -131,6 +131,15 @@ impl EkfConfig {
         recovery: RecoveryConfig::DEFAULT,
         calibration: CalibrationConfig::DEFAULT,
     };
+
+    /// The motion noise of `u` (forward m², sideways m², heading rad², in
+    /// the robot's frame): the variances per metre driven and per radian
+    /// turned.
+    pub fn motion_noise(&self, u: &Motion) -> [f32; 3] {
+        let d = sqrt(u.dx * u.dx + u.dy * u.dy);
+        let turn = libm::fabsf(u.dphi);
+        [self.var_per_m * d, self.var_side_per_m * d, self.var_heading_per_rad * turn + self.var_heading_per_m * d]
+    }
 }
 
 /// Why the filter refused an input.
@@ -307,10 +316,7 @@ impl Ekf {
         }
         let raw = u;
         let u = &self.calibration.corrected(raw);
-        let d = sqrt(u.dx * u.dx + u.dy * u.dy);
-        let turn = libm::fabsf(u.dphi);
-        let c = &self.cfg;
-        let q = [c.var_per_m * d, c.var_side_per_m * d, c.var_heading_per_rad * turn + c.var_heading_per_m * d];
+        let q = self.cfg.motion_noise(u);
         let heading = self.g.x[2];
         let (a, b) = self.g.propagate(u, q)?;
         self.calibration.take(&self.cfg.calibration, raw, heading);
@@ -478,4 +484,3 @@ impl Ekf {
         self.g.condition(&self.cfg.min_var, &self.cfg.max_var);
     }
 }
-

@@ -224,18 +224,18 @@ impl PoseGaussian {
             if pivots_ok(p) {
                 return;
             }
-            for i in 0..3 {
-                for j in 0..3 {
+            for (i, row) in p.iter_mut().enumerate() {
+                for (j, v) in row.iter_mut().enumerate() {
                     if i != j {
-                        p[i][j] *= 0.5;
+                        *v *= 0.5;
                     }
                 }
             }
         }
-        for i in 0..3 {
-            for j in 0..3 {
+        for (i, row) in p.iter_mut().enumerate() {
+            for (j, v) in row.iter_mut().enumerate() {
                 if i != j {
-                    p[i][j] = 0.0;
+                    *v = 0.0;
                 }
             }
         }
@@ -255,4 +255,76 @@ fn pivots_ok(p: &M3) -> bool {
     let l21 = (p[2][1] - l20 * p[1][0]) / d1;
     let d2 = p[2][2] - l20 * p[2][0] - l21 * l21 * d1;
     d0 > 0.0 && d2 > MARGIN * p[2][2]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn diag(v: [f32; 3]) -> M3 {
+        [[v[0], 0.0, 0.0], [0.0, v[1], 0.0], [0.0, 0.0, v[2]]]
+    }
+
+    /// Facing +y, 1 m forward: x gains nothing, y 1 m; the forward noise
+    /// lands on y's variance, the sideways on x's; the heading's variance
+    /// spreads into x (∂x/∂φ = −1 m) — by hand.
+    #[test]
+    fn propagation_by_hand() {
+        let half_pi = core::f32::consts::FRAC_PI_2;
+        let mut g = PoseGaussian::new([0.0, 0.0, half_pi], diag([0.01, 0.02, 0.001]));
+        let (a, b) = g.propagate(&Motion { dx: 1.0, dy: 0.0, dphi: 0.0 }, [4e-4, 1e-4, 2e-4]).unwrap();
+        assert!((a + 1.0).abs() < 1e-6 && b.abs() < 1e-6, "{a} {b}");
+        assert!(g.x[0].abs() < 1e-6 && (g.x[1] - 1.0).abs() < 1e-6);
+        let p = g.p;
+        // x: 0.01 + a²·0.001 + sideways 1e-4; y: 0.02 + forward 4e-4;
+        // x–φ: a·0.001; φ: 0.001 + 2e-4.
+        assert!((p[0][0] - (0.01 + 0.001 + 1e-4)).abs() < 1e-7, "{p:?}");
+        assert!((p[1][1] - (0.02 + 4e-4)).abs() < 1e-7, "{p:?}");
+        assert!((p[0][2] + 0.001).abs() < 1e-7 && (p[2][0] + 0.001).abs() < 1e-7, "{p:?}");
+        assert!(p[0][1].abs() < 1e-7 && (p[2][2] - 0.0012).abs() < 1e-7, "{p:?}");
+        // Out of range: refused, nothing changed.
+        let before = g;
+        assert_eq!(g.propagate(&Motion { dx: 2.0e6, dy: 0.0, dphi: 0.0 }, [0.0; 3]), Err(EkfError::OutOfRange));
+        assert_eq!(g, before);
+    }
+
+    /// One reading of x alone (H = [1, 0, 0]): the scalar Kalman filter by
+    /// hand, K = P/(P + R); the gate; Huber's weight beyond `robust_nis`.
+    #[test]
+    fn correction_by_hand() {
+        let (px, r) = (0.04f32, 0.01f32);
+        let mut g = PoseGaussian::new([1.0, 2.0, 0.0], diag([px, 0.09, 0.01]));
+        let c = g.correct(0.1, [1.0, 0.0, 0.0], r, 6.63, f32::INFINITY);
+        let k = px / (px + r);
+        let Correction::Accepted { nis, dx } = c else { panic!("{c:?}") };
+        assert!((nis - 0.01 / 0.05).abs() < 1e-6);
+        assert!((dx[0] - k * 0.1).abs() < 1e-7 && dx[1] == 0.0 && dx[2] == 0.0, "{dx:?}");
+        assert!((g.x[0] - (1.0 + k * 0.1)).abs() < 1e-6 && g.x[1] == 2.0);
+        assert!((g.p[0][0] - (1.0 - k) * px).abs() < 1e-7 && (g.p[1][1] - 0.09).abs() < 1e-9, "{:?}", g.p);
+        // ν²/S = 0.25/0.018 ≈ 13.9 > 6.63: gated, nothing changed.
+        let before = g;
+        assert!(matches!(g.correct(0.5, [1.0, 0.0, 0.0], r, 6.63, f32::INFINITY), Correction::Gated { .. }));
+        assert_eq!(g, before);
+        // Huber at 1: ν = 0.3 with S = P + R = 0.05 is ν²/S = 1.8; the
+        // variance grows until ν²/S = 1 (S' = 0.09), so the step is
+        // P/S'·ν = 0.04/0.09·0.3, not 0.04/0.05·0.3.
+        let mut h = PoseGaussian::new([0.0; 3], diag([px, 0.09, 0.01]));
+        let Correction::Accepted { dx, .. } = h.correct(0.3, [1.0, 0.0, 0.0], r, 6.63, 1.0) else { panic!() };
+        assert!((dx[0] - px / 0.09 * 0.3).abs() < 1e-6, "{dx:?}");
+        // S not positive: unusable.
+        assert_eq!(h.correct(0.1, [1.0, 0.0, 0.0], -1.0, 6.63, 1.0), Correction::Unusable);
+    }
+
+    /// Conditioning: a diagonal clamped to its bounds, a correlation of 1
+    /// brought under it, symmetry restored.
+    #[test]
+    fn conditioning_keeps_p_definite() {
+        let mut g = PoseGaussian::new([0.0; 3], [[1.0, 1.0, 0.0], [1.2, 1.0, 0.0], [0.0, 0.0, f32::NAN]]);
+        g.condition(&[1e-6; 3], &[0.5, 10.0, 2.0]);
+        let p = g.p;
+        assert_eq!((p[0][0], p[1][1], p[2][2]), (0.5, 1.0, 2.0));
+        assert_eq!(p[0][1], p[1][0]);
+        assert!(p[0][1] * p[0][1] < p[0][0] * p[1][1], "{p:?}");
+        assert!(pivots_ok(&p));
+    }
 }

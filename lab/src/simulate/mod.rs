@@ -8,6 +8,7 @@ pub mod agreement;
 pub mod figures;
 pub mod filters;
 pub mod localization;
+pub mod places;
 pub mod report;
 pub mod world;
 
