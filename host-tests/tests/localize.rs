@@ -445,7 +445,7 @@ fn a_place_scores_readings_against_the_null_and_corrects_itself() {
     let lookup = FieldLookup::new(map.field());
     let beam = BeamModel::DEFAULT;
     let cfg = EkfConfig::DEFAULT;
-    let t = Tracking { lookup: &lookup, beam: &beam, ekf: &cfg, clip: 5.0 };
+    let t = Tracking { lookup: &lookup, beam: &beam, ekf: &cfg, clip: 5.0, hit_share: 0.5 };
     let still = Motion::default();
     // A free pose with a heading the field expects nothing of and one it
     // expects a sure plane echo of (the forward transducer, no offset).

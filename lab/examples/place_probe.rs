@@ -6,7 +6,8 @@
 //! by the odometry alone, its evidence over the null, the best evidence of
 //! `N` places started at random free poses now more than 1 m or 20° from
 //! the truth, how many are within 0.5 m of it, and the tracked place's
-//! accepted share. `CLIP`, `NULL_MEMORY`, `DIST` (m, default 60).
+//! accepted share. `CLIP`, `NULL_MEMORY`, `DIST` (m, default 60), `EVERY`
+//! (m between rows, default 10).
 use echoloc_lab::simulate::places::{places_run, PlacesConfig};
 use echoloc_lab::simulate::world::WorldConfig;
 
@@ -29,7 +30,14 @@ fn main() {
         random_sigma: env3("RAND_SIGMA", d.random_sigma),
         clip: env("CLIP", d.clip),
         null_memory: env("NULL_MEMORY", d.null_memory),
-        every_m: d.every_m,
+        every_m: env("EVERY", d.every_m),
+        hit_share: env("HIT_SHARE", d.hit_share),
+        ekf: {
+            let mut e = d.ekf;
+            e.var_heading_per_m *= env("HEAD_VAR", 1.0);
+            e.var_heading_per_rad *= env("HEAD_VAR", 1.0);
+            e
+        },
     };
     let loaded = echoloc_lab::predict::load_map_with_field(map_path, 100).unwrap();
     let map = loaded.view().unwrap();

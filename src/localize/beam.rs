@@ -70,6 +70,12 @@ impl BeamModel {
         off_field: 0.01,
     };
 
+    /// A hit's σ, m, about the expected range `range_mm` (sure or not).
+    pub fn sigma_m(&self, range_mm: f32, sure: bool) -> f32 {
+        let scale = if sure { 1.0 } else { self.unsure_sigma_scale };
+        (self.sigma_mm + self.sigma_rel * range_mm) * scale * 1e-3
+    }
+
     /// The reading's likelihood given what is expected (`None`: the
     /// transducer is off the field). 1 for an invalid reading: it says
     /// nothing.

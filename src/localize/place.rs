@@ -11,14 +11,18 @@
 //! is all a range update needs. Each reading, in turn:
 //!
 //! 1. is scored at the place's pose before it corrects it, by the shared
-//!    measurement model: the beam model where the field expects an echo
-//!    (its hit widened by the pose's own uncertainty along the gradient),
-//!    off the field the beam model's off-field term, and where the field
-//!    expects nothing, *as the null hypothesis scores it*
-//!    ([`super::null`]): a place gains or loses nothing on an echo it did
-//!    not predict, so clutter costs every place and the null alike
+//!    measurement model, *hit or null*: where the field expects an echo,
+//!    the reading is that echo with probability `hit_share` (a Gaussian
+//!    about the expected range, its σ the beam model's widened by the
+//!    pose's own uncertainty along the gradient) and otherwise whatever
+//!    the null hypothesis ([`super::null`]) says a reading is; where the
+//!    field expects nothing, it is scored as the null scores it; off the
+//!    field, by the beam model's off-field term. A place gains only on the
+//!    echoes it predicted, and loses at most `ln(1 − hit_share)` on any
+//!    other reading, so clutter costs every place and the null alike
 //!    (docs/localization.md measures why: scored by the beam model's
-//!    uniform term, the clutter made the null beat the truth on every run);
+//!    short, random and miss terms, the clutter made the null beat the
+//!    truth on every run);
 //! 2. adds its log-ratio over the null, clipped to `±clip` (readings of one
 //!    ring are not independent), to the place's evidence;
 //! 3. corrects the pose, if it is an echo the field predicts on a plane:
@@ -40,7 +44,7 @@
 //! let field = FieldView::EMPTY;
 //! let lookup = FieldLookup::new(&field);
 //! let cfg = EkfConfig::DEFAULT;
-//! let t = Tracking { lookup: &lookup, beam: &BeamModel::DEFAULT, ekf: &cfg, clip: 2.0 };
+//! let t = Tracking { lookup: &lookup, beam: &BeamModel::DEFAULT, ekf: &cfg, clip: 2.0, hit_share: 0.5 };
 //! let mut place = Place::new([1.0, 2.0, 0.0], [0.1, 0.1, 0.05], &cfg).unwrap();
 //! // No field: the place stands nowhere the map allows, every reading says
 //! // so (clipped), and nothing corrects it; the odometry carries it.
@@ -54,7 +58,7 @@
 use super::beam::BeamModel;
 use super::expect::FieldLookup;
 use super::measure::Sensed;
-use crate::f32math::ln_fast;
+use crate::f32math::{clamp, exp_fast, ln_fast, sqrt};
 use crate::map::field::Expected;
 use crate::referencing::gaussian::{in_range, Correction, PoseGaussian, M3};
 use crate::referencing::{sensor_position, wrap, EkfConfig, EkfError, Motion, MountM, Reading};
@@ -73,6 +77,11 @@ pub struct Tracking<'m> {
     pub ekf: &'m EkfConfig,
     /// A reading's log-ratio over the null is clipped to `±clip`.
     pub clip: f32,
+    /// Where the field expects a sure echo, the share of readings that
+    /// are it (a hit, the beam model's σ about the expected range); the
+    /// rest are scored as the null scores them. Half of it for an unsure
+    /// echo.
+    pub hit_share: f32,
 }
 
 /// Why a place refused a cycle.
@@ -169,7 +178,7 @@ impl Place {
         if null.len() != sensed.len() {
             return Err(PlaceError::Mismatch);
         }
-        let Tracking { lookup, beam, ekf, clip } = *t;
+        let Tracking { lookup, beam, ekf, clip, hit_share } = *t;
         let mut out = PlaceCycle::default();
         for (r, &n) in sensed.iter().zip(null) {
             if r.reading == Reading::Invalid {
@@ -183,17 +192,30 @@ impl Place {
                 Some((Expected::Echo { .. }, Some(g))) => Some([g[0], g[1], g[0] * dpos[0] + g[1] * dpos[1]]),
                 _ => None,
             };
-            let own = match found {
-                Some((Expected::Nothing, _)) => n,
-                Some((e, _)) => {
-                    // The hit widened by the pose's uncertainty along the
-                    // gradient, or across the position where none is known.
-                    let var_m2 = hj.map_or(0.5 * (self.g.p[0][0] + self.g.p[1][1]), |h| self.g.spread(&h));
-                    ln_fast(beam.likelihood_with(r.reading, Some(e), var_m2.max(0.0) * 1e6))
+            // The reading's log-ratio over the null.
+            let ratio = match found {
+                Some((Expected::Nothing, _)) => 0.0,
+                Some((Expected::Echo { range_mm, sure }, _)) => {
+                    let w = if sure { hit_share } else { 0.5 * hit_share };
+                    let hit = match r.reading {
+                        Reading::Echo { range_mm: z } if z as f32 <= beam.r_max_mm => {
+                            // The hit's σ widened by the pose's uncertainty
+                            // along the gradient, or across the position
+                            // where none is known.
+                            let var_m2 = hj.map_or(0.5 * (self.g.p[0][0] + self.g.p[1][1]), |h| self.g.spread(&h));
+                            let own = beam.sigma_m(range_mm, sure);
+                            let s2 = own * own + var_m2.max(0.0);
+                            let d = (z as f32 - range_mm) * 1e-3;
+                            exp_fast(-0.5 * d * d / s2) * (0.398_942_3 / sqrt(s2))
+                        }
+                        _ => 0.0,
+                    };
+                    // ln((w·hit + (1 − w)·null) / null).
+                    ln_fast(1.0 - w + w * hit * exp_fast(-n))
                 }
-                None => ln_fast(beam.off_field),
+                None => ln_fast(beam.off_field) - n,
             };
-            out.evidence += crate::f32math::clamp(own - n, -clip, clip);
+            out.evidence += clamp(ratio, -clip, clip);
             let (Some(hj), Some((Expected::Echo { range_mm, sure }, _)), Reading::Echo { range_mm: z }) =
                 (hj, found, r.reading)
             else {
@@ -202,8 +224,7 @@ impl Place {
             if z as f32 > beam.r_max_mm || !sure {
                 continue;
             }
-            let scale = if sure { 1.0 } else { beam.unsure_sigma_scale };
-            let sigma_m = (beam.sigma_mm + beam.sigma_rel * range_mm) * scale * 1e-3;
+            let sigma_m = beam.sigma_m(range_mm, sure);
             let c = self.g.correct((z as f32 - range_mm) * 1e-3, hj, sigma_m * sigma_m, ekf.gate, ekf.robust_nis);
             if !matches!(c, Correction::Unusable) {
                 out.tested = out.tested.saturating_add(1);
