@@ -25,9 +25,11 @@
 //!    truth on every run);
 //! 2. adds its log-ratio over the null, clipped to `±clip` (readings of one
 //!    ring are not independent), to the place's evidence;
-//! 3. corrects the pose, if it is an echo the field predicts on a plane:
-//!    the same gated, Huber-weighted Joseph update as the tracker's
-//!    ([`crate::referencing::gaussian`]), with the beam model's σ.
+//! 3. corrects the pose, if it is an echo the field predicts surely on a
+//!    plane and more likely the hit than not: the same gated,
+//!    Huber-weighted Joseph update as the tracker's
+//!    ([`crate::referencing::gaussian`]), with the beam model's σ divided by
+//!    the reading's responsibility (the hit's share of its likelihood).
 //!
 //! The cycle's odometry then carries the place, with the tracker's motion
 //! noise. Two places' evidence differ by the log-ratio of the readings
@@ -62,6 +64,12 @@ use crate::f32math::{clamp, exp_fast, ln_fast, sqrt};
 use crate::map::field::Expected;
 use crate::referencing::gaussian::{in_range, Correction, PoseGaussian, M3};
 use crate::referencing::{sensor_position, wrap, EkfConfig, EkfError, Motion, MountM, Reading};
+
+/// A reading corrects a place only when it is more likely the hit than
+/// the null's (its responsibility at least this), its variance divided by
+/// that responsibility: clutter just inside the gate pulls less, or not at
+/// all (measured on the simulator: docs/localization.md).
+const RESP_MIN: f32 = 0.5;
 
 /// What tracking a place takes: the field, the shared measurement model,
 /// the filter's settings (its motion noise, gate, Huber threshold and
@@ -193,6 +201,7 @@ impl Place {
                 _ => None,
             };
             // The reading's log-ratio over the null.
+            let mut resp = 0.0;
             let ratio = match found {
                 Some((Expected::Nothing, _)) => 0.0,
                 Some((Expected::Echo { range_mm, sure }, _)) => {
@@ -211,7 +220,9 @@ impl Place {
                         _ => 0.0,
                     };
                     // ln((w·hit + (1 − w)·null) / null).
-                    ln_fast(1.0 - w + w * hit * exp_fast(-n))
+                    let odds = w * hit * exp_fast(-n);
+                    resp = odds / (1.0 - w + odds);
+                    ln_fast(1.0 - w + odds)
                 }
                 None => ln_fast(beam.off_field) - n,
             };
@@ -221,11 +232,12 @@ impl Place {
             else {
                 continue;
             };
-            if z as f32 > beam.r_max_mm || !sure {
+            if z as f32 > beam.r_max_mm || !sure || resp < RESP_MIN {
                 continue;
             }
             let sigma_m = beam.sigma_m(range_mm, sure);
-            let c = self.g.correct((z as f32 - range_mm) * 1e-3, hj, sigma_m * sigma_m, ekf.gate, ekf.robust_nis);
+            let c =
+                self.g.correct((z as f32 - range_mm) * 1e-3, hj, sigma_m * sigma_m / resp, ekf.gate, ekf.robust_nis);
             if !matches!(c, Correction::Unusable) {
                 out.tested = out.tested.saturating_add(1);
             }
