@@ -103,7 +103,7 @@ if [ "$rc" -ne 1 ] || ! grep -q "HardFault at pc" <<<"$fault"; then
   echo "the HardFault handler did not exit with failure (exit code $rc)"
   exit 1
 fi
-for bin in depot kappa_cost ekf_cost; do
+for bin in depot kappa_cost ekf_cost place_cost; do
   cargo run -q -p qemu-mps2-an386 --bin "$bin" --target thumbv7em-none-eabihf --release || {
     echo "firmware binary $bin exited non-zero"
     exit 1

@@ -1,0 +1,153 @@
+//! The cost of #48's places on QEMU's `mps2-an386` (Cortex-M4F): one ring
+//! cycle of one place (16 readings of the Pioneer ring, each a field
+//! lookup with its slope, scored by hit or null, at most one scalar update,
+//! then the odometry) and the null hypothesis's scoring of the same 16
+//! readings, in instructions; a bank of 8 places' cycle beside the
+//! tracker's 380 k (docs/benchmarks.md) is `8 × place + null`.
+//!
+//! The places stand at 8 free poses of the depot's field, each 3 cm and
+//! 1° from the pose its readings were made at (the field's own expected
+//! ranges there, 5 of 16 readings made clutter 0.6 m short), so the cycles
+//! score, gate and correct as on a real run. Each figure times `N` cycles
+//! with SysTick (deterministic under `-icount shift=0`) and subtracts the
+//! same loop without the call. Checks on the way that the places took
+//! readings and came nearer their truths. Exits 0 when every check passed.
+//!
+//! `cargo run -p qemu-mps2-an386 --bin place_cost --target thumbv7em-none-eabihf --release`
+#![no_std]
+#![no_main]
+
+use core::hint::black_box;
+
+use cortex_m_rt::entry;
+use cortex_m_semihosting::hprintln;
+use echoloc::localize::place::{Place, PlaceCycle, Tracking};
+use echoloc::localize::{BeamModel, FieldLookup, NullModel, Sensed};
+use echoloc::map::{Aligned, Expected, MapView};
+use echoloc::predict::PIONEER16;
+use echoloc::referencing::{EkfConfig, Motion, Reading};
+use qemu_mps2_an386::{calibrate, elapsed, exit, free_poses, start_systick, ticks};
+
+static DEPOT: &Aligned<[u8]> = &Aligned(*include_bytes!("../../depot.map"));
+
+const PLACES: usize = 8;
+const N: u32 = 8;
+
+#[inline(never)]
+fn place_call(p: &mut Place, sensed: &[Sensed], null: &[f32], u: &Motion, t: &Tracking<'_>) -> PlaceCycle {
+    p.cycle(sensed, null, u, t).unwrap_or_default()
+}
+
+#[inline(never)]
+fn null_call(n: &mut NullModel, sensed: &[Sensed], out: &mut [f32; 16]) {
+    for (o, s) in out.iter_mut().zip(sensed) {
+        *o = n.log_likelihood(s.reading);
+    }
+}
+
+#[entry]
+fn main() -> ! {
+    let mut ok = true;
+    let syst = start_systick();
+    hprintln!("echoloc {} place cost on mps2-an386 (Cortex-M4F)", env!("CARGO_PKG_VERSION"));
+    let per_tick = calibrate(&syst);
+    let Ok(map) = MapView::new(&DEPOT.0) else {
+        hprintln!("FAIL: the depot map refused");
+        exit(false)
+    };
+    let lookup = FieldLookup::new(map.field());
+    let beam = BeamModel::DEFAULT;
+    let cfg = EkfConfig::DEFAULT;
+    let t = Tracking { lookup: &lookup, beam: &beam, ekf: &cfg, clip: 2.0, hit_share: 0.5 };
+    let poses = free_poses::<PLACES>(&map, 10_000);
+    if poses.len() < PLACES {
+        hprintln!("FAIL: only {} free poses", poses.len());
+        exit(false);
+    }
+    // Each place's readings: what the field expects at its truth, a few
+    // made clutter, in the robot's frame (a still robot: the mounts).
+    let mut places: heapless::Vec<Place, PLACES> = heapless::Vec::new();
+    let mut truths = [[0f32; 3]; PLACES];
+    let mut sensed = [[Sensed { pose: [0.0; 3], reading: Reading::NoEcho }; 16]; PLACES];
+    for (k, p) in poses.iter().enumerate() {
+        let truth = [p.x_mm * 1e-3, p.y_mm * 1e-3, p.heading_rad];
+        truths[k] = truth;
+        let (s, c) = (libm::sinf(truth[2]), libm::cosf(truth[2]));
+        for (j, m) in PIONEER16.iter().enumerate() {
+            let local = [m.x_mm as f32 * 1e-3, m.y_mm as f32 * 1e-3, (m.heading_mdeg as f32 * 1e-3).to_radians()];
+            let (x, y) = (truth[0] + c * local[0] - s * local[1], truth[1] + s * local[0] + c * local[1]);
+            let reading = match lookup.expected(x * 1e3, y * 1e3, truth[2] + local[2]) {
+                Some(Expected::Echo { range_mm, .. }) if j % 3 == 0 && range_mm > 1200.0 => {
+                    Reading::Echo { range_mm: (range_mm - 600.0) as u32 }
+                }
+                Some(Expected::Echo { range_mm, .. }) => Reading::Echo { range_mm: range_mm as u32 },
+                _ => Reading::NoEcho,
+            };
+            sensed[k][j] = Sensed { pose: local, reading };
+        }
+        let start = [truth[0] + 0.03, truth[1] - 0.01, truth[2] + 0.017];
+        match Place::new(start, [0.1, 0.1, 0.05], &cfg) {
+            Ok(pl) => {
+                let _ = places.push(pl);
+            }
+            Err(_) => exit(false),
+        }
+    }
+    let still = Motion::default();
+    let null_scores = [-1.6f32; 16];
+
+    // One place's cycle, over the 8 places in turn.
+    let (mut tested, mut accepted) = (0u32, 0u32);
+    let t0 = ticks(&syst);
+    for _ in 0..N {
+        for (p, s) in places.iter_mut().zip(&sensed) {
+            let c = place_call(black_box(p), black_box(s), black_box(&null_scores), &still, &t);
+            tested += u32::from(c.tested);
+            accepted += u32::from(c.accepted);
+        }
+    }
+    let with = elapsed(t0, ticks(&syst));
+    let t0 = ticks(&syst);
+    for _ in 0..N {
+        for (p, s) in places.iter_mut().zip(&sensed) {
+            black_box(p);
+            black_box(s);
+            black_box(&null_scores);
+        }
+    }
+    let base = elapsed(t0, ticks(&syst));
+    let place = with.saturating_sub(base) * per_tick / (N * PLACES as u32);
+    hprintln!("metric place_cycle_insns {} (16 readings: {} tested, {} accepted over all)", place, tested, accepted);
+
+    // The null's scoring of a cycle's 16 readings.
+    let mut null = NullModel::new(beam.r_min_mm, beam.r_max_mm, 400.0);
+    let mut out = [0f32; 16];
+    let t0 = ticks(&syst);
+    for i in 0..N {
+        null_call(black_box(&mut null), black_box(&sensed[(i as usize) % PLACES]), &mut out);
+    }
+    let with = elapsed(t0, ticks(&syst));
+    let t0 = ticks(&syst);
+    for i in 0..N {
+        black_box(&mut null);
+        black_box(&sensed[(i as usize) % PLACES]);
+        black_box(&mut out);
+    }
+    let base = elapsed(t0, ticks(&syst));
+    let null_insns = with.saturating_sub(base) * per_tick / N;
+    hprintln!("metric null_cycle_insns {} (16 readings)", null_insns);
+    hprintln!("metric bank8_cycle_insns {} (8 places and the null)", 8 * place + null_insns);
+    hprintln!("metric place_state_bytes {}", core::mem::size_of::<Place>());
+
+    // The places took readings and ended nearer their truths than they began.
+    let near = places.iter().zip(&truths).filter(|(p, tr)| {
+        let q = p.pose();
+        libm::hypotf(q[0] - tr[0], q[1] - tr[1]) < libm::hypotf(0.03, 0.01)
+    });
+    let near = near.count();
+    if accepted == 0 || near < PLACES / 2 {
+        hprintln!("FAIL: {} readings accepted, {} of {} places nearer their truth", accepted, near, PLACES);
+        ok = false;
+    }
+    exit(ok)
+}
