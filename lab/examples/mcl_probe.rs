@@ -82,7 +82,8 @@ fn main() {
     // The null hypothesis (issue #48): the readings scored by their own
     // recent mix; the truth's summed lead over it, raw and with each
     // reading's log-ratio clipped to ±CLIP nats.
-    let mut null = echoloc::localize::NullModel::new(mc.beam.r_min_mm, mc.beam.r_max_mm, env("NULL_MEMORY", 400.0));
+    let mut null =
+        echoloc::localize::NullModel::new(mc.beam.r_min_mm, mc.beam.r_max_mm, env("NULL_MEMORY", 400.0)).unwrap();
     let clip = env("CLIP", 2.0);
     let hybrid = std::env::var("HYBRID").is_ok();
     let (mut acc_null, mut truth_null_clipped) = (0f32, 0f32);

@@ -60,7 +60,7 @@ pub use history::History;
 pub use hypotheses::{Bank, Hypothesis, Proposal, BANK};
 pub use localizer::{CycleReport, LocalizeError, Localizer, LocalizerConfig, LocalizerCounts, Mode, Start, MAX_SENSED};
 pub use measure::{Measure, Sensed};
-pub use null::NullModel;
+pub use null::{NullError, NullModel};
 pub use particles::{kld_bound, Cluster, McConfig, MotionNoise, ParticleError, ParticleSet, Weighed};
 pub use place::{Place, PlaceCycle, PlaceError, Tracking};
 pub use rng::Rng;

@@ -21,7 +21,7 @@
 //! use echoloc::localize::null::{NullModel, BINS};
 //! use echoloc::referencing::Reading;
 //!
-//! let mut null = NullModel::new(408.0, 5500.0, 400.0);
+//! let mut null = NullModel::new(408.0, 5500.0, 400.0).unwrap();
 //! // Nothing seen yet: every bin is as likely as another.
 //! let first = null.log_likelihood(Reading::NoEcho);
 //! assert!((first - (1.0 / (BINS as f32 + 1.0)).ln()).abs() < 1e-3);
@@ -39,6 +39,16 @@ use crate::referencing::Reading;
 /// The window's equal slices an echo is counted in.
 pub const BINS: usize = 16;
 
+/// Why a null model was refused.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum NullError {
+    /// The window is empty or not finite.
+    Window,
+    /// The memory is not finite or is smaller than the bins.
+    Memory,
+}
+
 /// The null hypothesis's counts: no echo (index 0) and the window's slices.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -54,18 +64,18 @@ impl NullModel {
     /// Over the window `r_min_mm..r_max_mm` (an echo beyond `r_max_mm`
     /// counts as none, as the beam model takes it; one nearer than
     /// `r_min_mm` falls in the first slice), forgetting by halves once
-    /// more than `memory` readings are counted (at least [`BINS`] + 1).
-    /// A window that is empty or not finite is taken as the Polaroid's
-    /// (408–5 500 mm).
-    pub fn new(r_min_mm: f32, r_max_mm: f32, memory: f32) -> Self {
-        let (r_min_mm, r_max_mm) = if r_min_mm.is_finite() && r_max_mm.is_finite() && r_max_mm > r_min_mm {
-            (r_min_mm, r_max_mm)
-        } else {
-            (408.0, 5500.0)
-        };
-        let floor = (BINS + 1) as f32;
-        let memory = if memory.is_finite() && memory > floor { memory } else { floor };
-        Self { r_min_mm, r_max_mm, memory, counts: [0.0; BINS + 1], total: 0.0 }
+    /// more than `memory` readings are counted. Refused: a window that is
+    /// empty or not finite ([`NullError::Window`]), a memory that is not
+    /// finite or holds fewer readings than there are bins, [`BINS`] + 1
+    /// ([`NullError::Memory`]).
+    pub fn new(r_min_mm: f32, r_max_mm: f32, memory: f32) -> Result<Self, NullError> {
+        if !(r_min_mm.is_finite() && r_max_mm.is_finite() && r_max_mm > r_min_mm) {
+            return Err(NullError::Window);
+        }
+        if !(memory.is_finite() && memory >= (BINS + 1) as f32) {
+            return Err(NullError::Memory);
+        }
+        Ok(Self { r_min_mm, r_max_mm, memory, counts: [0.0; BINS + 1], total: 0.0 })
     }
 
     /// How many readings it counts before halving.
@@ -146,7 +156,7 @@ mod tests {
     /// and after a skewed run of them.
     #[test]
     fn the_prediction_is_a_distribution() {
-        let mut null = NullModel::new(408.0, 5500.0, 50.0);
+        let mut null = NullModel::new(408.0, 5500.0, 50.0).unwrap();
         let check = |null: &NullModel| {
             let step_mm = 1u32;
             let mut total = f64::from(null.likelihood(Reading::NoEcho));
@@ -170,7 +180,7 @@ mod tests {
     /// reading neither scores nor counts.
     #[test]
     fn the_estimate_by_hand() {
-        let mut null = NullModel::new(408.0, 5500.0, 400.0);
+        let mut null = NullModel::new(408.0, 5500.0, 400.0).unwrap();
         for r in [Reading::NoEcho, Reading::Invalid, Reading::NoEcho, echo(500), Reading::NoEcho, echo(9000)] {
             null.observe(r);
         }
@@ -192,7 +202,7 @@ mod tests {
     /// estimate is what the halved counts give, by hand.
     #[test]
     fn forgetting_halves_the_counts() {
-        let mut null = NullModel::new(408.0, 5500.0, 20.0);
+        let mut null = NullModel::new(408.0, 5500.0, 20.0).unwrap();
         for _ in 0..20 {
             null.observe(Reading::NoEcho);
         }
@@ -207,13 +217,18 @@ mod tests {
         assert!(null.likelihood(Reading::NoEcho) < 0.1);
     }
 
-    /// A bad window or memory falls back to what works, never a NaN.
+    /// A bad window or memory is refused with its reason; the smallest
+    /// memory accepted still scores every reading finitely.
     #[test]
-    fn bad_settings_fall_back() {
-        for (a, b, m) in
-            [(5500.0, 408.0, 400.0), (f32::NAN, 5500.0, 400.0), (408.0, 5500.0, f32::NAN), (408.0, 5500.0, -1.0)]
-        {
-            let mut null = NullModel::new(a, b, m);
+    fn bad_settings_are_refused() {
+        for (a, b) in [(5500.0, 408.0), (408.0, 408.0), (f32::NAN, 5500.0), (408.0, f32::INFINITY)] {
+            assert_eq!(NullModel::new(a, b, 400.0), Err(NullError::Window), "{a}..{b}");
+        }
+        for m in [f32::NAN, -1.0, 16.0, f32::INFINITY] {
+            assert_eq!(NullModel::new(408.0, 5500.0, m), Err(NullError::Memory), "memory {m}");
+        }
+        let mut null = NullModel::new(408.0, 5500.0, 17.0).unwrap();
+        for _ in 0..100 {
             for r in [Reading::NoEcho, echo(1000), echo(0), echo(u32::MAX)] {
                 assert!(null.log_likelihood(r).is_finite());
             }

@@ -108,7 +108,8 @@ pub fn places_run(
         let p = ParticleSet::<0>::free_pose(&mut rng, &lookup).ok_or_else(|| LabError("no free space".into()))?;
         places.push(Place::new(p, cfg.random_sigma, &ekf).map_err(bad)?);
     }
-    let mut null = NullModel::new(beam.r_min_mm, beam.r_max_mm, cfg.null_memory);
+    let mut null = NullModel::new(beam.r_min_mm, beam.r_max_mm, cfg.null_memory)
+        .map_err(|e| LabError(format!("the null's memory {}: {e:?}", cfg.null_memory)))?;
     let (mut travelled, mut last, mut next_row) = (0f32, first.truth, cfg.every_m);
     let (mut tested, mut accepted) = (0u32, 0u32);
     let mut rows = Vec::new();

@@ -120,7 +120,7 @@ fn main() -> ! {
     hprintln!("metric place_cycle_insns {} (16 readings: {} tested, {} accepted over all)", place, tested, accepted);
 
     // The null's scoring of a cycle's 16 readings.
-    let mut null = NullModel::new(beam.r_min_mm, beam.r_max_mm, 400.0);
+    let Ok(mut null) = NullModel::new(beam.r_min_mm, beam.r_max_mm, 400.0) else { exit(false) };
     let mut out = [0f32; 16];
     let t0 = ticks(&syst);
     for i in 0..N {
