@@ -13,6 +13,7 @@
 //! | [`history`] | [`History`]: the last cycles' readings in the current frame, to verify the search's proposals on |
 //! | [`hypotheses`] | [`Bank`]: the places still plausible besides the cluster, each with the cluster's lead over it summed since it was proposed; the hand-off's margin |
 //! | [`place`] | [`Place`]: a place that tracks itself, its own Kalman filter corrected by the field's plane ranges and gradients, with its evidence over the null since it was born |
+//! | [`places`] | [`Places`]: the living places and the sequential test between them and the null: proposals, merges, drops, the leader |
 //! | [`null`] | [`NullModel`]: the null hypothesis, "none of these places": the readings scored by their own recent mix |
 //! | [`sprt`] | [`Sprt`]: Wald's sequential test on the evidence between two hypotheses, each reading's share clipped |
 //! | [`rng`] | [`Rng`]: xoshiro128++, uniform and approximately normal draws |
@@ -43,6 +44,7 @@ pub mod measure;
 pub mod null;
 pub mod particles;
 pub mod place;
+pub mod places;
 pub mod rng;
 pub mod scan;
 pub mod sprt;
@@ -63,6 +65,7 @@ pub use measure::{Measure, Sensed};
 pub use null::{NullError, NullModel};
 pub use particles::{kld_bound, Cluster, McConfig, MotionNoise, ParticleError, ParticleSet, Weighed};
 pub use place::{Place, PlaceCycle, PlaceError, Tracking};
+pub use places::{Places, PlacesError, Standing};
 pub use rng::Rng;
 pub use scan::{Candidate, ScanConfig, Sweep};
 pub use sprt::{Decision, Sprt, SprtError};
