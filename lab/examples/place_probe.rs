@@ -6,7 +6,9 @@
 //! by the odometry alone, its evidence over the null, the best evidence of
 //! `N` places started at random free poses now more than 1 m or 20° from
 //! the truth, how many are within 0.5 m of it, and the tracked place's
-//! accepted share. `CLIP`, `NULL_MEMORY`, `DIST` (m, default 60), `EVERY`
+//! accepted share. With `BANK=A`: instead, a bank of 8 places proposed by
+//! the particles' cluster, deciding at A nats: where a place first led,
+//! and how far off it was. `CLIP`, `NULL_MEMORY`, `DIST` (m, default 60), `EVERY`
 //! (m between rows, default 10).
 use echoloc_lab::simulate::places::{places_run, PlacesConfig};
 use echoloc_lab::simulate::world::WorldConfig;
@@ -43,6 +45,16 @@ fn main() {
     let map = loaded.view().unwrap();
     let mounts = echoloc_lab::predict::ring_mounts("pioneer16").unwrap();
     let world = WorldConfig::new(seed, f64::from(env("DIST", 60.0)), clutter, mounts.clone());
+    if let Ok(bound) = std::env::var("BANK") {
+        let o = echoloc_lab::simulate::places::bank_run(&map, &world, &mounts, &cfg, bound.parse().unwrap()).unwrap();
+        let e = o.handoff_error.map_or("-\t-".into(), |(m, d)| format!("{m:.3}\t{d:.1}"));
+        let h = o.handoff_m.map_or("-".into(), |m| format!("{m:.1}"));
+        println!(
+            "handoff_m\terr_m\terr_deg\tmost_living\ttravelled_m\n{h}\t{e}\t{}\t{:.0}",
+            o.most_living, o.travelled_m
+        );
+        return;
+    }
     println!("m\ttruth_err_m\ttruth_dphi_deg\tdead_err_m\ttruth_ev\tbest_wrong_ev\tnear_truth\taccept");
     for r in places_run(&map, &world, &mounts, &cfg).unwrap() {
         println!(

@@ -170,6 +170,90 @@ pub fn places_run(
     Ok(rows)
 }
 
+/// What the bank of places did on a run, proposed by the particles.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BankOutcome {
+    /// The truth's travel when a place first led (m), ...
+    pub handoff_m: Option<f32>,
+    /// ... that place's position error then, m, and heading error, degrees.
+    pub handoff_error: Option<(f32, f32)>,
+    /// The run's length, m.
+    pub travelled_m: f32,
+    /// The most places alive at once.
+    pub most_living: usize,
+}
+
+/// Simulates `world` and runs a bank of 8 places deciding at `bound`
+/// nats, proposed each cycle by 1 024 particles' heaviest cluster (as the
+/// localizer weighs, resamples and moves them; the sweep's proposals are
+/// not used), until a place first leads.
+pub fn bank_run(
+    map: &MapView<'_>,
+    world_cfg: &WorldConfig,
+    mounts: &[Mount],
+    cfg: &PlacesConfig,
+    bound: f32,
+) -> Result<BankOutcome, LabError> {
+    use echoloc::localize::places::{Places, Standing};
+    let run = world::simulate_world(map, world_cfg, &mut |_| {}).map_err(|e| LabError(format!("the world: {e}")))?;
+    let records = to_records(&run.readings)?;
+    let sound = SpeedOfSound::from_um_per_s(run.sound.um_per_s()).map_err(|e| LabError(format!("{e:?}")))?;
+    let lookup = FieldLookup::new(map.field());
+    let mc = McConfig::DEFAULT;
+    let ekf = cfg.ekf;
+    let t = Tracking { lookup: &lookup, beam: &mc.beam, ekf: &ekf, clip: cfg.clip, hit_share: cfg.hit_share };
+    let mut null = NullModel::new(mc.beam.r_min_mm, mc.beam.r_max_mm, cfg.null_memory)
+        .map_err(|e| LabError(format!("the null's memory {}: {e:?}", cfg.null_memory)))?;
+    let mut particles: Box<ParticleSet<1024>> = Box::new(ParticleSet::new(world_cfg.seed));
+    particles.seed_global(&lookup, 1024).map_err(|e| LabError(format!("{e:?}")))?;
+    let mut bank = Places::<8>::new(bound).map_err(|e| LabError(format!("{e:?}")))?;
+    let Some(first) = records.first() else { return Err(LabError("an empty run".into())) };
+    let (mut travelled, mut last) = (0f32, first.truth);
+    let mut out = BankOutcome { handoff_m: None, handoff_error: None, travelled_m: 0.0, most_living: 0 };
+    let mut i = 0;
+    while i < records.len() {
+        let c = records[i].cycle;
+        let (mut offset, mut sensed, mut end) = ([0f32; 3], Vec::new(), last);
+        while let Some(r) = records.get(i).filter(|r| r.cycle == c) {
+            offset = compose(&offset, &r.odometry);
+            let m = mounts.get(usize::from(r.transducer)).ok_or_else(|| LabError("transducer off the ring".into()))?;
+            let mount = [m.x_mm as f32 * 1e-3, m.y_mm as f32 * 1e-3, (m.heading_mdeg as f32 * 1e-3).to_radians()];
+            let reading = r.echo_us.map_or(Reading::NoEcho, |us| Reading::Echo { range_mm: sound.range_mm(us) });
+            sensed.push(Sensed { pose: compose(&offset, &mount), reading });
+            end = r.truth;
+            i += 1;
+        }
+        let nulls: Vec<f32> = sensed.iter().map(|s| null.log_likelihood(s.reading)).collect();
+        let u = Motion { dx: offset[0], dy: offset[1], dphi: offset[2] };
+        let w = particles.weigh(&sensed, &lookup, &mc);
+        let _ = w;
+        let cluster = particles.cluster(0.2, 5f32.to_radians());
+        if let Some(cl) = cluster.filter(|cl| cl.weight >= 0.1) {
+            let p = cl.covariance;
+            let sigma = [p[0][0].max(0.01).sqrt(), p[1][1].max(0.01).sqrt(), p[2][2].max(0.0025).sqrt()];
+            if let Ok(place) = Place::new(cl.mean, sigma, &ekf) {
+                bank.propose(place);
+            }
+        }
+        let standing = bank.cycle(&sensed, &nulls, &u, &t).map_err(|e| LabError(format!("cycle {c}: {e:?}")))?;
+        out.most_living = out.most_living.max(bank.living().len());
+        travelled += (end[0] - last[0]).hypot(end[1] - last[1]);
+        last = end;
+        if let Standing::Leads { index, .. } = standing {
+            if let Some(p) = bank.living().get(index) {
+                let q = p.pose();
+                out.handoff_m = Some(travelled);
+                out.handoff_error = Some(((q[0] - end[0]).hypot(q[1] - end[1]), wrap(q[2] - end[2]).to_degrees()));
+                break;
+            }
+        }
+        particles.resample(&sensed, &lookup, &mc, 1.0 - cluster.map_or(0.0, |c| c.weight), &[]);
+        particles.motion(&u, &mc.motion).map_err(|e| LabError(format!("{e:?}")))?;
+    }
+    out.travelled_m = travelled;
+    Ok(out)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
