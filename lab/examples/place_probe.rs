@@ -7,8 +7,8 @@
 //! `N` places started at random free poses now more than 1 m or 20° from
 //! the truth, how many are within 0.5 m of it, and the tracked place's
 //! accepted share. With `BANK=A`: instead, a bank of 8 places proposed by
-//! the particles' cluster, deciding at A nats: where a place first led,
-//! and how far off it was. `CLIP`, `NULL_MEMORY`, `DIST` (m, default 60), `EVERY`
+//! the particles' cluster (and `SWEEP` of the node sweep's best places a
+//! cycle), deciding at A nats: where a place first led, and how far off. `CLIP`, `NULL_MEMORY`, `DIST` (m, default 60), `EVERY`
 //! (m between rows, default 10).
 use echoloc_lab::simulate::places::{places_run, PlacesConfig};
 use echoloc_lab::simulate::world::WorldConfig;
@@ -46,7 +46,15 @@ fn main() {
     let mounts = echoloc_lab::predict::ring_mounts("pioneer16").unwrap();
     let world = WorldConfig::new(seed, f64::from(env("DIST", 60.0)), clutter, mounts.clone());
     if let Ok(bound) = std::env::var("BANK") {
-        let o = echoloc_lab::simulate::places::bank_run(&map, &world, &mounts, &cfg, bound.parse().unwrap()).unwrap();
+        let o = echoloc_lab::simulate::places::bank_run(
+            &map,
+            &world,
+            &mounts,
+            &cfg,
+            bound.parse().unwrap(),
+            env("SWEEP", 0.0) as usize,
+        )
+        .unwrap();
         let e = o.handoff_error.map_or("-\t-".into(), |(m, d)| format!("{m:.3}\t{d:.1}"));
         let h = o.handoff_m.map_or("-".into(), |m| format!("{m:.1}"));
         println!(

@@ -185,14 +185,15 @@ pub struct BankOutcome {
 
 /// Simulates `world` and runs a bank of 8 places deciding at `bound`
 /// nats, proposed each cycle by 1 024 particles' heaviest cluster (as the
-/// localizer weighs, resamples and moves them; the sweep's proposals are
-/// not used), until a place first leads.
+/// localizer weighs, resamples and moves them) and by the node sweep's
+/// best `sweep_proposals` places, until a place first leads.
 pub fn bank_run(
     map: &MapView<'_>,
     world_cfg: &WorldConfig,
     mounts: &[Mount],
     cfg: &PlacesConfig,
     bound: f32,
+    sweep_proposals: usize,
 ) -> Result<BankOutcome, LabError> {
     use echoloc::localize::places::{Places, Standing};
     let run = world::simulate_world(map, world_cfg, &mut |_| {}).map_err(|e| LabError(format!("the world: {e}")))?;
@@ -207,6 +208,8 @@ pub fn bank_run(
     let mut particles: Box<ParticleSet<1024>> = Box::new(ParticleSet::new(world_cfg.seed));
     particles.seed_global(&lookup, 1024).map_err(|e| LabError(format!("{e:?}")))?;
     let mut bank = Places::<8>::new(bound).map_err(|e| LabError(format!("{e:?}")))?;
+    let mut sweep = echoloc::localize::Sweep::default();
+    let mut candidates = heapless::Vec::new();
     let Some(first) = records.first() else { return Err(LabError("an empty run".into())) };
     let (mut travelled, mut last) = (0f32, first.truth);
     let mut out = BankOutcome { handoff_m: None, handoff_error: None, travelled_m: 0.0, most_living: 0 };
@@ -233,6 +236,14 @@ pub fn bank_run(
             let sigma = [p[0][0].max(0.01).sqrt(), p[1][1].max(0.01).sqrt(), p[2][2].max(0.0025).sqrt()];
             if let Ok(place) = Place::new(cl.mean, sigma, &ekf) {
                 bank.propose(place);
+            }
+        }
+        if sweep_proposals > 0 {
+            sweep.scan(&sensed, &lookup, &mc.beam, &echoloc::localize::ScanConfig::DEFAULT, &mut candidates);
+            for cand in candidates.iter().take(sweep_proposals) {
+                if let Ok(place) = Place::new(cand.pose, [0.15, 0.15, 0.05], &ekf) {
+                    bank.propose(place);
+                }
             }
         }
         let standing = bank.cycle(&sensed, &nulls, &u, &t).map_err(|e| LabError(format!("cycle {c}: {e:?}")))?;
