@@ -6,7 +6,7 @@
 //! - **Proposals** (the particles' cluster, the sweep's places) join the
 //!   bank at the null's level (evidence 0: before it was born, the place
 //!   was part of "none of these"), unless a living place stands within
-//!   [`SAME_PLACE_M`](super::SAME_PLACE_M) and 20° of it (that place
+//!   a metre and 20° of it (that place
 //!   already follows it); a full bank gives the slot of its weakest place
 //!   only if that one trails the null.
 //! - **Every cycle** each place scores the readings and corrects itself
