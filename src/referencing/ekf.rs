@@ -17,7 +17,7 @@
 //! ```
 
 use super::calibration::{CalibrationConfig, OdometryCalibration, Standing};
-pub use super::gaussian::MAX_POSITION_M;
+pub use super::gaussian::{EkfError, MAX_POSITION_M};
 use super::gaussian::{in_range, Correction, PoseGaussian};
 use super::model::{range_model, wrap, Motion, MountM, Target};
 use super::recovery::{Found, Recent, RecoveryConfig};
@@ -140,17 +140,6 @@ impl EkfConfig {
         let turn = libm::fabsf(u.dphi);
         [self.var_per_m * d, self.var_side_per_m * d, self.var_heading_per_rad * turn + self.var_heading_per_m * d]
     }
-}
-
-/// Why the filter refused an input.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub enum EkfError {
-    /// A non-finite or negative number where a finite one is needed.
-    NotFinite,
-    /// A position beyond ±[`MAX_POSITION_M`], where no map coordinate
-    /// reaches: refused, the state left as it was.
-    OutOfRange,
 }
 
 /// What one range update did.

@@ -20,8 +20,18 @@
 //! assert!(g.x[0] < 1.0 && g.x[0] > 0.98);
 //! ```
 
-use super::ekf::EkfError;
 use super::model::{compose, wrap, Motion};
+
+/// Why the filter (the tracker's EKF, or a place's) refused an input.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum EkfError {
+    /// A non-finite or negative number where a finite one is needed.
+    NotFinite,
+    /// A position beyond ±[`MAX_POSITION_M`], where no map coordinate
+    /// reaches: refused, the state left as it was.
+    OutOfRange,
+}
 
 /// A 3×3 matrix, rows.
 pub type M3 = [[f32; 3]; 3];
