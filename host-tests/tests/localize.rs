@@ -478,6 +478,12 @@ fn a_place_scores_readings_against_the_null_and_corrects_itself() {
     assert_eq!((c.evidence, c.tested), (0.0, 0), "unpredicted echo: {c:?}");
     let c = p.cycle(&sense(phi, Reading::Invalid), &null, &still, &t).unwrap();
     assert_eq!((c.evidence, c.tested), (0.0, 0));
+    // Nor does a reading whose null score is not finite.
+    for bad in [f32::NAN, f32::NEG_INFINITY] {
+        let c = p.cycle(&sense(phi, Reading::Echo { range_mm: r as u32 }), &[bad], &still, &t).unwrap();
+        assert_eq!((c.evidence, c.tested), (0.0, 0));
+    }
+    assert_eq!(p.evidence(), 0.0);
     // On the predicted range, 20 mm long: it gains, is taken, and the
     // pose moves away from the plane by a share of the 20 mm.
     let before = p.pose();

@@ -173,9 +173,10 @@ impl Place {
     /// One ring cycle: `sensed` (each transducer's pose relative to the
     /// cycle's start, and its reading) with `null`, the null hypothesis's
     /// log-likelihood of each reading in the same order, then the cycle's
-    /// odometry `offset`. Refused, the place unchanged, when `null` is not
-    /// as long as `sensed`; a pose the odometry would carry out of range is
-    /// refused after the readings are taken.
+    /// odometry `offset`. An invalid reading, or one whose null score is
+    /// not finite, says nothing. Refused, the place unchanged, when `null`
+    /// is not as long as `sensed`; a pose the odometry would carry out of
+    /// range is refused after the readings are taken.
     pub fn cycle(
         &mut self,
         sensed: &[Sensed],
@@ -189,9 +190,12 @@ impl Place {
         let Tracking { lookup, beam, ekf, clip, hit_share } = *t;
         let mut out = PlaceCycle::default();
         for (r, &n) in sensed.iter().zip(null) {
-            if r.reading == Reading::Invalid {
+            // A null score that is not finite says nothing of the reading;
+            // one below e⁻⁸⁰ is taken as that (`exp(−n)` stays finite).
+            if r.reading == Reading::Invalid || !n.is_finite() {
                 continue;
             }
+            let n = n.max(-80.0);
             let x = self.g.x;
             let (pos, dpos) = sensor_position(&x, MountM { x: r.pose[0], y: r.pose[1] });
             let found = lookup.expected_slope(pos[0] * 1e3, pos[1] * 1e3, x[2] + r.pose[2]);

@@ -17,8 +17,8 @@
 //! ```
 
 use super::calibration::{CalibrationConfig, OdometryCalibration, Standing};
-pub use super::gaussian::{EkfError, MAX_POSITION_M};
 use super::gaussian::{in_range, Correction, PoseGaussian};
+pub use super::gaussian::{EkfError, MAX_POSITION_M};
 use super::model::{range_model, wrap, Motion, MountM, Target};
 use super::recovery::{Found, Recent, RecoveryConfig};
 use crate::f32math::sqrt;

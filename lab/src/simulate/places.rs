@@ -83,6 +83,41 @@ fn compose(a: &[f32; 3], b: &[f32; 3]) -> [f32; 3] {
     [a[0] + c * b[0] - s * b[1], a[1] + s * b[0] + c * b[1], wrap(a[2] + b[2])]
 }
 
+/// One ring cycle as the places take it: each reading where the odometry
+/// since the cycle's start carried its transducer (the localizer's frame),
+/// the cycle's odometry, and the true pose at its last reading.
+struct Cycle {
+    sensed: Vec<Sensed>,
+    offset: Motion,
+    truth_end: [f32; 3],
+}
+
+/// The run's records grouped into cycles.
+fn cycles_of(
+    records: &[echoloc::scenario::Record],
+    mounts: &[Mount],
+    sound: &SpeedOfSound,
+) -> Result<Vec<Cycle>, LabError> {
+    let mut out: Vec<Cycle> = Vec::new();
+    let mut offset = [0f32; 3];
+    for (k, r) in records.iter().enumerate() {
+        if k == 0 || records.get(k - 1).is_some_and(|p| p.cycle != r.cycle) {
+            offset = [0.0; 3];
+            out.push(Cycle { sensed: Vec::new(), offset: Motion::default(), truth_end: r.truth });
+        }
+        offset = compose(&offset, &r.odometry);
+        let m = mounts.get(usize::from(r.transducer)).ok_or_else(|| LabError("transducer off the ring".into()))?;
+        let mount = [m.x_mm as f32 * 1e-3, m.y_mm as f32 * 1e-3, (m.heading_mdeg as f32 * 1e-3).to_radians()];
+        let reading = r.echo_us.map_or(Reading::NoEcho, |us| Reading::Echo { range_mm: sound.range_mm(us) });
+        if let Some(c) = out.last_mut() {
+            c.sensed.push(Sensed { pose: compose(&offset, &mount), reading });
+            c.offset = Motion { dx: offset[0], dy: offset[1], dphi: offset[2] };
+            c.truth_end = r.truth;
+        }
+    }
+    Ok(out)
+}
+
 /// Simulates `world` on `map` (a map with its field) with the ring
 /// `mounts` and tracks the places through it.
 pub fn places_run(
@@ -113,24 +148,9 @@ pub fn places_run(
     let (mut travelled, mut last, mut next_row) = (0f32, first.truth, cfg.every_m);
     let (mut tested, mut accepted) = (0u32, 0u32);
     let mut rows = Vec::new();
-    let mut i = 0;
-    while i < records.len() {
-        let c = records[i].cycle;
-        // The places stand at the cycle's start; each reading where the
-        // odometry since then carried the transducer (as the localizer
-        // takes them).
-        let (mut offset, mut sensed, mut end) = ([0f32; 3], Vec::new(), last);
-        while let Some(r) = records.get(i).filter(|r| r.cycle == c) {
-            offset = compose(&offset, &r.odometry);
-            let m = mounts.get(usize::from(r.transducer)).ok_or_else(|| LabError("transducer off the ring".into()))?;
-            let mount = [m.x_mm as f32 * 1e-3, m.y_mm as f32 * 1e-3, (m.heading_mdeg as f32 * 1e-3).to_radians()];
-            let reading = r.echo_us.map_or(Reading::NoEcho, |us| Reading::Echo { range_mm: sound.range_mm(us) });
-            sensed.push(Sensed { pose: compose(&offset, &mount), reading });
-            end = r.truth;
-            i += 1;
-        }
+    for (c, Cycle { sensed, offset: u, truth_end: end }) in cycles_of(&records, mounts, &sound)?.into_iter().enumerate()
+    {
         let nulls: Vec<f32> = sensed.iter().map(|s| null.log_likelihood(s.reading)).collect();
-        let u = Motion { dx: offset[0], dy: offset[1], dphi: offset[2] };
         let refused = |e| LabError(format!("cycle {c}: {e:?}"));
         let pc = tracked.cycle(&sensed, &nulls, &u, &t).map_err(refused)?;
         tested += u32::from(pc.tested);
@@ -213,23 +233,10 @@ pub fn bank_run(
     let Some(first) = records.first() else { return Err(LabError("an empty run".into())) };
     let (mut travelled, mut last) = (0f32, first.truth);
     let mut out = BankOutcome { handoff_m: None, handoff_error: None, travelled_m: 0.0, most_living: 0 };
-    let mut i = 0;
-    while i < records.len() {
-        let c = records[i].cycle;
-        let (mut offset, mut sensed, mut end) = ([0f32; 3], Vec::new(), last);
-        while let Some(r) = records.get(i).filter(|r| r.cycle == c) {
-            offset = compose(&offset, &r.odometry);
-            let m = mounts.get(usize::from(r.transducer)).ok_or_else(|| LabError("transducer off the ring".into()))?;
-            let mount = [m.x_mm as f32 * 1e-3, m.y_mm as f32 * 1e-3, (m.heading_mdeg as f32 * 1e-3).to_radians()];
-            let reading = r.echo_us.map_or(Reading::NoEcho, |us| Reading::Echo { range_mm: sound.range_mm(us) });
-            sensed.push(Sensed { pose: compose(&offset, &mount), reading });
-            end = r.truth;
-            i += 1;
-        }
+    for (c, Cycle { sensed, offset: u, truth_end: end }) in cycles_of(&records, mounts, &sound)?.into_iter().enumerate()
+    {
         let nulls: Vec<f32> = sensed.iter().map(|s| null.log_likelihood(s.reading)).collect();
-        let u = Motion { dx: offset[0], dy: offset[1], dphi: offset[2] };
-        let w = particles.weigh(&sensed, &lookup, &mc);
-        let _ = w;
+        particles.weigh(&sensed, &lookup, &mc);
         let cluster = particles.cluster(0.2, 5f32.to_radians());
         if let Some(cl) = cluster.filter(|cl| cl.weight >= 0.1) {
             let p = cl.covariance;
