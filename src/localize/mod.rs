@@ -56,6 +56,14 @@ pub(crate) const SAME_PLACE_M: f32 = 1.0;
 pub(crate) const SAME_PLACE_DEG: f32 = 20.0;
 pub(crate) const SAME_PLACE_RAD: f32 = SAME_PLACE_DEG * core::f32::consts::PI / 180.0;
 
+/// Whether poses `a` and `b` stand within `m` metres and `rad` radians of
+/// each other (false for a NaN).
+#[inline(always)]
+pub(crate) fn within(a: &[f32; 3], b: &[f32; 3], m: f32, rad: f32) -> bool {
+    let (dx, dy) = (a[0] - b[0], a[1] - b[1]);
+    dx * dx + dy * dy <= m * m && libm::fabsf(crate::referencing::wrap(a[2] - b[2])) <= rad
+}
+
 pub use beam::BeamModel;
 pub use expect::FieldLookup;
 pub use history::History;

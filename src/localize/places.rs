@@ -34,8 +34,8 @@ use heapless::Vec;
 
 use super::measure::Sensed;
 use super::place::{Place, PlaceError, Tracking};
-use super::{SAME_PLACE_M, SAME_PLACE_RAD};
-use crate::referencing::{wrap, Motion};
+use super::{within, SAME_PLACE_M, SAME_PLACE_RAD};
+use crate::referencing::Motion;
 
 /// Two places within this distance (m) ...
 pub const MERGE_M: f32 = 0.25;
@@ -110,11 +110,6 @@ pub struct Places<const K: usize> {
     bound: f32,
 }
 
-fn near(a: &[f32; 3], b: &[f32; 3], m: f32, rad: f32) -> bool {
-    let (dx, dy) = (a[0] - b[0], a[1] - b[1]);
-    dx * dx + dy * dy <= m * m && libm::fabsf(wrap(a[2] - b[2])) <= rad
-}
-
 impl<const K: usize> Places<K> {
     /// An empty bank deciding at `bound` nats.
     pub fn new(bound: f32) -> Result<Self, PlacesError> {
@@ -138,7 +133,7 @@ impl<const K: usize> Places<K> {
     /// the null's level).
     pub fn propose(&mut self, place: Place) -> Proposal {
         let p = place.pose();
-        if let Some(i) = self.living.iter().position(|q| near(&q.pose(), &p, SAME_PLACE_M, SAME_PLACE_RAD)) {
+        if let Some(i) = self.living.iter().position(|q| within(&q.pose(), &p, SAME_PLACE_M, SAME_PLACE_RAD)) {
             return Proposal::Held(i);
         }
         if self.living.push(place).is_ok() {
@@ -183,7 +178,7 @@ impl<const K: usize> Places<K> {
         for (i, (k, a)) in keep.iter_mut().zip(&self.living).enumerate() {
             *k = !self.living.iter().enumerate().any(|(j, b)| {
                 j != i
-                    && near(&a.pose(), &b.pose(), MERGE_M, MERGE_RAD)
+                    && within(&a.pose(), &b.pose(), MERGE_M, MERGE_RAD)
                     && (b.cycles() > a.cycles() || (b.cycles() == a.cycles() && j < i))
             });
         }

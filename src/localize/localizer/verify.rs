@@ -8,7 +8,7 @@ use super::super::hypotheses::{Bank, Hypothesis, Proposal, BANK};
 use super::super::measure::Measure;
 use super::super::particles::Cluster;
 use super::super::scan::{Candidate, SCAN_KEEP};
-use super::super::{SAME_PLACE_M, SAME_PLACE_RAD};
+use super::super::{within, SAME_PLACE_M, SAME_PLACE_RAD};
 use super::Localizer;
 use crate::referencing::wrap;
 
@@ -112,9 +112,7 @@ impl<const N: usize> Localizer<N> {
             })
         };
         // (Not `!elsewhere`: a NaN pose is neither near nor elsewhere.)
-        let near = |a: &[f32; 3], b: &[f32; 3]| {
-            dist2(a, b) <= SAME_PLACE_M * SAME_PLACE_M && heading_apart(a, b) <= SAME_PLACE_RAD
-        };
+        let near = |a: &[f32; 3], b: &[f32; 3]| within(a, b, SAME_PLACE_M, SAME_PLACE_RAD);
         let z = c.handoff_z;
         let mut lead = if cluster.is_some() { f32::INFINITY } else { f32::NEG_INFINITY };
         if cluster.is_some() {
