@@ -8,7 +8,9 @@
 //! the truth, how many are within 0.5 m of it, and the tracked place's
 //! accepted share. With `BANK=A`: instead, a bank of 8 places proposed by
 //! the particles' cluster (and `SWEEP` of the node sweep's best places a
-//! cycle), deciding at A nats: where a place first led, and how far off. `CLIP`, `NULL_MEMORY`, `DIST` (m, default 60), `EVERY`
+//! cycle), deciding at A nats: where a place first led, how far off, and then
+//! the evidence of a living place near the truth, where a proposal first
+//! came near it, and the particles' cluster (`scripts/bank-runs.sh`). `CLIP`, `NULL_MEMORY`, `DIST` (m, default 60), `EVERY`
 //! (m between rows, default 10).
 use echoloc_lab::simulate::places::{places_run, PlacesConfig};
 use echoloc_lab::simulate::world::WorldConfig;
@@ -57,9 +59,15 @@ fn main() {
         .unwrap();
         let e = o.handoff_error.map_or("-\t-".into(), |(m, d)| format!("{m:.3}\t{d:.1}"));
         let h = o.handoff_m.map_or("-".into(), |m| format!("{m:.1}"));
+        let opt = |v: Option<f32>| v.map_or("-".into(), |v| format!("{v:.1}"));
+        let (cw, cd) =
+            o.cluster_at_handoff.map_or(("-".into(), "-".into()), |(w, d)| (format!("{w:.2}"), format!("{d:.2}")));
         println!(
-            "handoff_m\terr_m\terr_deg\tmost_living\ttravelled_m\n{h}\t{e}\t{}\t{:.0}",
-            o.most_living, o.travelled_m
+            "handoff_m\terr_m\terr_deg\tmost_living\ttravelled_m\ttruth_ev\ttruth_proposed_m\tcluster_w\tcluster_d\n{h}\t{e}\t{}\t{:.0}\t{}\t{}\t{cw}\t{cd}",
+            o.most_living,
+            o.travelled_m,
+            opt(o.truth_alive),
+            opt(o.truth_proposed_m)
         );
         return;
     }

@@ -170,6 +170,13 @@ impl Place {
         self.cycles
     }
 
+    /// The place with this evidence: for the bank's tests by hand.
+    #[cfg(test)]
+    pub(crate) fn with_evidence(mut self, evidence: f32) -> Self {
+        self.evidence = evidence;
+        self
+    }
+
     /// One ring cycle: `sensed` (each transducer's pose relative to the
     /// cycle's start, and its reading) with `null`, the null hypothesis's
     /// log-likelihood of each reading in the same order, then the cycle's

@@ -201,6 +201,15 @@ pub struct BankOutcome {
     pub travelled_m: f32,
     /// The most places alive at once.
     pub most_living: usize,
+    /// At the hand-off: the evidence of the best living place within
+    /// 0.5 m and 20° of the truth (none alive: `None`) ...
+    pub truth_alive: Option<f32>,
+    /// ... the truth's travel when a proposal first came within 0.5 m and
+    /// 20° of it ...
+    pub truth_proposed_m: Option<f32>,
+    /// ... and the particles' heaviest cluster then: its weight and its
+    /// distance from the leading place, m.
+    pub cluster_at_handoff: Option<(f32, f32)>,
 }
 
 /// Simulates `world` and runs a bank of 8 places deciding at `bound`
@@ -232,16 +241,29 @@ pub fn bank_run(
     let mut candidates = heapless::Vec::new();
     let Some(first) = records.first() else { return Err(LabError("an empty run".into())) };
     let (mut travelled, mut last) = (0f32, first.truth);
-    let mut out = BankOutcome { handoff_m: None, handoff_error: None, travelled_m: 0.0, most_living: 0 };
+    let mut out = BankOutcome {
+        handoff_m: None,
+        handoff_error: None,
+        travelled_m: 0.0,
+        most_living: 0,
+        truth_alive: None,
+        truth_proposed_m: None,
+        cluster_at_handoff: None,
+    };
+    let near = |q: &[f32; 3], t: &[f32; 3]| (q[0] - t[0]).hypot(q[1] - t[1]) <= 0.5 && wrap(q[2] - t[2]).abs() <= 0.35;
     for (c, Cycle { sensed, offset: u, truth_end: end }) in cycles_of(&records, mounts, &sound)?.into_iter().enumerate()
     {
         let nulls: Vec<f32> = sensed.iter().map(|s| null.log_likelihood(s.reading)).collect();
+        let start = last;
         particles.weigh(&sensed, &lookup, &mc);
         let cluster = particles.cluster(0.2, 5f32.to_radians());
         if let Some(cl) = cluster.filter(|cl| cl.weight >= 0.1) {
             let p = cl.covariance;
             let sigma = [p[0][0].max(0.01).sqrt(), p[1][1].max(0.01).sqrt(), p[2][2].max(0.0025).sqrt()];
             if let Ok(place) = Place::new(cl.mean, sigma, &ekf) {
+                if out.truth_proposed_m.is_none() && near(&cl.mean, &start) {
+                    out.truth_proposed_m = Some(travelled);
+                }
                 bank.propose(place);
             }
         }
@@ -249,6 +271,9 @@ pub fn bank_run(
             sweep.scan(&sensed, &lookup, &mc.beam, &echoloc::localize::ScanConfig::DEFAULT, &mut candidates);
             for cand in candidates.iter().take(sweep_proposals) {
                 if let Ok(place) = Place::new(cand.pose, [0.15, 0.15, 0.05], &ekf) {
+                    if out.truth_proposed_m.is_none() && near(&cand.pose, &start) {
+                        out.truth_proposed_m = Some(travelled);
+                    }
                     bank.propose(place);
                 }
             }
@@ -262,6 +287,16 @@ pub fn bank_run(
                 let q = p.pose();
                 out.handoff_m = Some(travelled);
                 out.handoff_error = Some(((q[0] - end[0]).hypot(q[1] - end[1]), wrap(q[2] - end[2]).to_degrees()));
+                out.truth_alive = bank
+                    .living()
+                    .iter()
+                    .filter(|p| near(&p.pose(), &end))
+                    .map(|p| p.evidence())
+                    .fold(None, |b: Option<f32>, e| Some(b.map_or(e, |b| b.max(e))));
+                out.cluster_at_handoff = cluster.map(|cl| {
+                    let m = compose(&cl.mean, &[u.dx, u.dy, u.dphi]);
+                    (cl.weight, (m[0] - q[0]).hypot(m[1] - q[1]))
+                });
                 break;
             }
         }
