@@ -11,7 +11,11 @@
 //! score, gate and correct as on a real run. Each figure times `N` cycles
 //! with SysTick (deterministic under `-icount shift=0`) and subtracts the
 //! same loop without the call. Checks on the way that the places took
-//! readings and came nearer their truths. Exits 0 when every check passed.
+//! readings and came nearer their truths. Then the bank itself
+//! (`Places<8>::cycle`: the 8 places on one robot's readings, the merges,
+//! the drops and the test over their common cycles), its bound so wide
+//! that all 8 stay alive (the most a cycle can cost). Exits 0 when every
+//! check passed.
 //!
 //! `cargo run -p qemu-mps2-an386 --bin place_cost --target thumbv7em-none-eabihf --release`
 #![no_std]
@@ -22,6 +26,7 @@ use core::hint::black_box;
 use cortex_m_rt::entry;
 use cortex_m_semihosting::hprintln;
 use echoloc::localize::place::{Place, PlaceCycle, Tracking};
+use echoloc::localize::places::{Places, Standing};
 use echoloc::localize::{BeamModel, FieldLookup, NullModel, Sensed};
 use echoloc::map::{Aligned, Expected, MapView};
 use echoloc::predict::PIONEER16;
@@ -43,6 +48,11 @@ fn null_call(n: &mut NullModel, sensed: &[Sensed], out: &mut [f32; 16]) {
     for (o, s) in out.iter_mut().zip(sensed) {
         *o = n.log_likelihood(s.reading);
     }
+}
+
+#[inline(never)]
+fn bank_call(b: &mut Places<PLACES>, sensed: &[Sensed], null: &[f32], u: &Motion, t: &Tracking<'_>) -> Standing {
+    b.cycle(sensed, null, u, t).unwrap_or(Standing::Searching)
 }
 
 #[entry]
@@ -136,8 +146,41 @@ fn main() -> ! {
     let base = elapsed(t0, ticks(&syst));
     let null_insns = with.saturating_sub(base) * per_tick / N;
     hprintln!("metric null_cycle_insns {} (16 readings)", null_insns);
-    hprintln!("metric bank8_cycle_insns {} (8 places and the null)", 8 * place + null_insns);
     hprintln!("metric place_state_bytes {}", core::mem::size_of::<Place>());
+
+    // The bank: the same 8 places (as they are now) on the first one's
+    // readings, as one robot's bank hears one ring.
+    let Ok(mut bank) = Places::<PLACES>::new(1.0e9) else { exit(false) };
+    for p in &places {
+        let _ = bank.propose(*p);
+    }
+    if bank.living().len() != PLACES {
+        hprintln!("FAIL: {} of {} places joined the bank", bank.living().len(), PLACES);
+        exit(false);
+    }
+    let t0 = ticks(&syst);
+    for _ in 0..N {
+        black_box(bank_call(black_box(&mut bank), black_box(&sensed[0]), black_box(&null_scores), &still, &t));
+    }
+    let with = elapsed(t0, ticks(&syst));
+    let t0 = ticks(&syst);
+    for _ in 0..N {
+        black_box(&mut bank);
+        black_box(&sensed[0]);
+        black_box(&null_scores);
+    }
+    let base = elapsed(t0, ticks(&syst));
+    let bank_insns = with.saturating_sub(base) * per_tick / N;
+    hprintln!(
+        "metric bank8_cycle_insns {} (Places<8>::cycle, all 8 alive, and the null; {} alive after)",
+        bank_insns + null_insns,
+        bank.living().len()
+    );
+    hprintln!("metric places8_state_bytes {}", core::mem::size_of::<Places<PLACES>>());
+    if bank.living().len() != PLACES {
+        hprintln!("FAIL: the bank lost places at a bound of 10⁹ nats");
+        ok = false;
+    }
 
     // The places took readings and ended nearer their truths than they began.
     let near = places.iter().zip(&truths).filter(|(p, tr)| {
