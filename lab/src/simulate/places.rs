@@ -214,8 +214,9 @@ pub struct BankOutcome {
 
 /// Simulates `world` and runs a bank of 8 places deciding at `bound`
 /// nats, proposed each cycle by 1 024 particles' heaviest cluster (as the
-/// localizer weighs, resamples and moves them) and by the node sweep's
-/// best `sweep_proposals` places, until a place first leads.
+/// localizer weighs, resamples and moves them, the sweep's places injected
+/// into them as it does) and by the node sweep's best `sweep_proposals`
+/// places, until a place first leads.
 pub fn bank_run(
     map: &MapView<'_>,
     world_cfg: &WorldConfig,
@@ -300,7 +301,7 @@ pub fn bank_run(
                 break;
             }
         }
-        particles.resample(&sensed, &lookup, &mc, 1.0 - cluster.map_or(0.0, |c| c.weight), &[]);
+        particles.resample(&sensed, &lookup, &mc, 1.0 - cluster.map_or(0.0, |c| c.weight), &candidates);
         particles.motion(&u, &mc.motion).map_err(|e| LabError(format!("{e:?}")))?;
     }
     out.travelled_m = travelled;
