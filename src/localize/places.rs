@@ -1,7 +1,7 @@
 //! The living places and the sequential test between them and the null
 //! (DESIGN §4.8, issue #48): a fixed bank of [`Place`]s, each tracking
 //! itself, each with its evidence over the null hypothesis since it was
-//! born, and what every other had at its birth. Not yet wired into the
+//! born, and every pair's evidence when the younger was born. Not yet wired into the
 //! localizer.
 //!
 //! - **Proposals** (the particles' cluster, the sweep's places) join the
@@ -74,9 +74,8 @@ pub enum Standing {
 }
 
 /// Place `a`'s lead over place `b` over the cycles both lived (nats):
-/// `evidence` is each place's over the null since its birth, `since[x][y]`
-/// is `y`'s evidence when `x` was born (0 when `y` was born with or after
-/// `x`). A place born late is judged on what both heard, not on the cycles
+/// `evidence` is each place's over the null, `since[x][y]` is `y`'s
+/// evidence when the later of `x` and `y` was born. A place born late is judged on what both heard, not on the cycles
 /// before it was proposed: else the truth, proposed after an alias has led
 /// the null for a while, joins the bound behind it and is dropped at once.
 fn lead<R: AsRef<[f32]>>(evidence: &[f32], since: &[R], a: usize, b: usize) -> f32 {
@@ -109,7 +108,7 @@ fn margin<R: AsRef<[f32]>>(evidence: &[f32], since: &[R], i: usize, bound: f32) 
 
 /// The test on the living places (`evidence` each over the null, which
 /// stands at 0; `since` as [`Places`] keeps it: `since[x][y]` is `y`'s
-/// evidence when `x` was born): the place at least `bound` ahead of the
+/// evidence when the later of `x` and `y` was born): the place at least `bound` ahead of the
 /// null and of every other (of a contender, one itself `bound` ahead of
 /// the null, over the cycles both lived), if one is. At most one can be.
 /// A NaN evidence never leads.
@@ -140,13 +139,14 @@ pub enum PlacesError {
     Bound,
 }
 
-/// Up to `K` living places, what each rival had when each was born, and
+/// Up to `K` living places, where each pair's common cycles began, and
 /// the test's bound.
 #[derive(Clone, Debug)]
 pub struct Places<const K: usize> {
     living: Vec<Place, K>,
-    /// `since[x][y]`: place `y`'s evidence when place `x` was born (0 when
-    /// `y` was born with or after it); rows and columns follow `living`.
+    /// `since[x][y]`: place `y`'s evidence when the later of `x` and `y`
+    /// was born (its own, as proposed, when that was `y`); rows and
+    /// columns follow `living`.
     since: [[f32; K]; K],
     bound: f32,
 }
@@ -189,19 +189,20 @@ impl<const K: usize> Places<K> {
         self.living.clear();
     }
 
-    /// The newcomer in slot `i`: every other's evidence now is what it had
-    /// at the birth; nobody had anything of the newcomer's.
+    /// The newcomer in slot `i`: its common cycles with every other start
+    /// now, at their evidence and its own.
     fn born(&mut self, i: usize) {
+        let own = self.living.get(i).map_or(0.0, Place::evidence);
         let mut row = [0.0f32; K];
         for (j, (r, p)) in row.iter_mut().zip(&self.living).enumerate() {
-            *r = if j == i { 0.0 } else { p.evidence() };
+            *r = if j == i { own } else { p.evidence() };
         }
         if let Some(r) = self.since.get_mut(i) {
             *r = row;
         }
         for r in &mut self.since {
             if let Some(x) = r.get_mut(i) {
-                *x = 0.0;
+                *x = own;
             }
         }
     }
@@ -419,6 +420,11 @@ mod tests {
         assert_eq!(bank.propose(place(9.0, 0.0, 0.0)), Proposal::Joined(2));
         assert_eq!(bank.since[2][..3], [600.0, 200.0, 0.0]);
         assert_eq!(bank.since[0][2], 0.0);
+        // One proposed with evidence (taken as it is) gains from there.
+        assert_eq!(bank.propose(place(20.0, 0.0, 0.0).with_evidence(50.0)), Proposal::Joined(3));
+        assert_eq!((bank.since[0][3], bank.since[3][0]), (50.0, 600.0));
+        bank.living[3] = bank.living[3].with_evidence(80.0);
+        assert_eq!(bank.lead(3, 0), 30.0);
         // The first dropped: rows and columns follow (the second's record
         // of it goes; the third's of the second stays).
         bank.keep(&[false, true, true, true]);
