@@ -1,8 +1,8 @@
 //! The living places and the sequential test between them and the null
 //! (DESIGN §4.8, issue #48): a fixed bank of [`Place`]s, each tracking
 //! itself, each with its evidence over the null hypothesis since it was
-//! born, and every pair's evidence when the younger was born. Not yet wired into the
-//! localizer.
+//! born, and every pair's evidence when the younger was born. Not yet
+//! wired into the localizer.
 //!
 //! - **Proposals** (the particles' cluster, the sweep's places) join the
 //!   bank at the null's level (evidence 0: before it was born, the place
@@ -75,9 +75,10 @@ pub enum Standing {
 
 /// Place `a`'s lead over place `b` over the cycles both lived (nats):
 /// `evidence` is each place's over the null, `since[x][y]` is `y`'s
-/// evidence when the later of `x` and `y` was born. A place born late is judged on what both heard, not on the cycles
-/// before it was proposed: else the truth, proposed after an alias has led
-/// the null for a while, joins the bound behind it and is dropped at once.
+/// evidence when the later of `x` and `y` was born. A place born late is
+/// judged on what both heard, not on the cycles before it was proposed:
+/// else the truth, proposed after an alias has led the null for a while,
+/// joins the bound behind it and is dropped at once.
 fn lead<R: AsRef<[f32]>>(evidence: &[f32], since: &[R], a: usize, b: usize) -> f32 {
     let at = |x: usize, y: usize| since.get(x).and_then(|r| r.as_ref().get(y)).copied().unwrap_or(0.0);
     let (ea, eb) = (evidence.get(a).copied().unwrap_or(f32::NAN), evidence.get(b).copied().unwrap_or(f32::NAN));
@@ -108,9 +109,10 @@ fn margin<R: AsRef<[f32]>>(evidence: &[f32], since: &[R], i: usize, bound: f32) 
 
 /// The test on the living places (`evidence` each over the null, which
 /// stands at 0; `since` as [`Places`] keeps it: `since[x][y]` is `y`'s
-/// evidence when the later of `x` and `y` was born): the place at least `bound` ahead of the
-/// null and of every other (of a contender, one itself `bound` ahead of
-/// the null, over the cycles both lived), if one is. At most one can be.
+/// evidence when the later of `x` and `y` was born): the place at least
+/// `bound` ahead of the null and of every other (of a contender, one
+/// itself `bound` ahead of the null, over the cycles both lived), if one
+/// is. At most one can be.
 /// A NaN evidence never leads.
 pub fn standing<R: AsRef<[f32]>>(evidence: &[f32], since: &[R], bound: f32) -> Standing {
     (0..evidence.len())
@@ -210,6 +212,10 @@ impl<const K: usize> Places<K> {
     /// Keeps the places `keep` says, in order, with their rows and columns.
     fn keep(&mut self, keep: &[bool; K]) {
         let n = self.living.len();
+        // Most cycles keep every place: nothing to move.
+        if keep.iter().take(n).all(|&k| k) {
+            return;
+        }
         let kept: Vec<usize, K> = (0..n).filter(|&i| keep.get(i).copied().unwrap_or(true)).collect();
         let mut since = [[0.0f32; K]; K];
         for (row, &x) in since.iter_mut().zip(&kept) {
