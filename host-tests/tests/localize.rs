@@ -15,8 +15,8 @@
 
 use echoloc::credence::net::CredenceNet;
 use echoloc::localize::{
-    kld_bound, BeamModel, FieldLookup, LocalizeError, Localizer, LocalizerConfig, McConfig, Mode, ParticleSet, Rng,
-    Sensed, Start,
+    kld_bound, BeamModel, FieldLookup, LocalizeError, Localizer, LocalizerConfig, McConfig, Mode, ParticleSet, PlaceTest,
+    Rng, Sensed, Start,
 };
 use echoloc::map::{BlobError, Expected, FieldView, MapSource, MapView};
 use echoloc::predict::{predict_mount, Mount, Pose, PredictParams, PIONEER16};
@@ -504,4 +504,85 @@ fn a_place_scores_readings_against_the_null_and_corrects_itself() {
     assert_eq!(q, before);
     // A bank of 16 costs under 1 KiB of the localizer's 32 KiB.
     assert_eq!(std::mem::size_of::<Place>(), 56);
+}
+
+fn place_test_localizer<const N: usize>(seed: u64, test: PlaceTest) -> Box<Localizer<N>> {
+    let cfg = LocalizerConfig { place_test: Some(test), ..LocalizerConfig::DEFAULT };
+    Box::new(Localizer::new(cfg, EkfConfig::DEFAULT, VerdictConfig::POLAROID, seed))
+}
+
+/// With the sequential test deciding (issue #48), the hand-off comes on
+/// the cycle a place first leads the null and every other by the bound
+/// (the report's lead, the best place's smallest lead, passes it then and
+/// not before), and it goes to where the robot is.
+#[test]
+fn the_place_test_hands_off_when_a_place_leads_by_the_bound() {
+    let depot = Depot::load();
+    let map = depot.view();
+    let test = PlaceTest::DEFAULT;
+    let mut loc = place_test_localizer::<1024>(3, test);
+    loc.start(Start::Around { pose: [10.3, 5.1, 0.14], sigma: [0.5, 0.5, 0.17] }, map.field()).unwrap();
+    let step = |c: usize| Motion { dx: if c == 0 { 0.0 } else { 0.25 }, dy: 0.0, dphi: 0.0 };
+    let mut handed = None;
+    let mut seen = 0;
+    drive(&map, &mut loc, 40, along, step, |c, l, rep| {
+        if handed.is_some() {
+            return;
+        }
+        if rep.handoff {
+            assert!(rep.lead >= test.bound, "handed off at a lead of {}", rep.lead);
+            handed = Some((c, l.state()));
+        } else {
+            assert!(rep.lead < test.bound, "cycle {c}: a lead of {} and no hand-off", rep.lead);
+            let places = l.places().expect("the test's places");
+            assert_eq!(usize::from(rep.hypotheses), places.living().len());
+            seen = seen.max(places.living().len());
+            eprintln!("c{c} lead {:.1} n {} ev {:?}", rep.lead, places.living().len(), places.living().iter().map(|p| (p.evidence(), p.pose())).collect::<Vec<_>>());
+        }
+    });
+    let (c, x) = handed.expect("the test handed off");
+    assert!(seen >= 1, "no place was ever alive");
+    // The place was carried to the next cycle's start: where the robot is
+    // when cycle c + 1's readings are taken.
+    let t = along(c + 1);
+    assert!((x[0] - t[0]).hypot(x[1] - t[1]) < 0.2 && (x[2] - t[2]).abs() < 0.09, "cycle {c}: {x:?} against {t:?}");
+    assert_eq!(loc.mode(), Mode::Tracking);
+}
+
+/// Readings that know nothing of the place (ranges drawn at random): the
+/// null explains them as well as any place, and the test never hands off.
+#[test]
+fn the_place_test_never_hands_off_on_readings_that_fit_no_place() {
+    let depot = Depot::load();
+    let map = depot.view();
+    let mut loc = place_test_localizer::<256>(7, PlaceTest::DEFAULT);
+    loc.start(Start::Unknown, map.field()).unwrap();
+    let net = CredenceNet::shipped();
+    let p = params(&map);
+    let mut rng = Rng::new(11);
+    for c in 0..80 {
+        loc.odometry(&Motion { dx: 0.25, dy: 0.0, dphi: 0.0 }).unwrap();
+        for m in &PIONEER16 {
+            let reading = Reading::Echo { range_mm: 200 + (rng.uniform() * 4800.0) as u32 };
+            loc.reading(&map, m, &p, &net, reading).unwrap();
+        }
+        let rep = loc.end_cycle(map.field()).unwrap();
+        assert!(!rep.handoff, "cycle {c}: handed off on noise (lead {})", rep.lead);
+        assert_eq!(rep.mode, Mode::Searching);
+    }
+}
+
+/// A bound or a null memory the test cannot use is refused at the start.
+#[test]
+fn the_place_test_refuses_bad_settings() {
+    let depot = Depot::load();
+    let map = depot.view();
+    for bad in [
+        PlaceTest { bound: 0.0, ..PlaceTest::DEFAULT },
+        PlaceTest { bound: f32::NAN, ..PlaceTest::DEFAULT },
+        PlaceTest { null_memory: 3.0, ..PlaceTest::DEFAULT },
+    ] {
+        let mut loc = place_test_localizer::<64>(1, bad);
+        assert_eq!(loc.start(Start::Unknown, map.field()), Err(LocalizeError::PlaceTest), "{bad:?}");
+    }
 }

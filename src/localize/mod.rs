@@ -68,7 +68,9 @@ pub use beam::BeamModel;
 pub use expect::FieldLookup;
 pub use history::History;
 pub use hypotheses::{Bank, Hypothesis, Proposal, BANK};
-pub use localizer::{CycleReport, LocalizeError, Localizer, LocalizerConfig, LocalizerCounts, Mode, Start, MAX_SENSED};
+pub use localizer::{
+    CycleReport, LocalizeError, Localizer, LocalizerConfig, LocalizerCounts, Mode, PlaceTest, Start, MAX_SENSED, PLACES,
+};
 pub use measure::{Measure, Sensed};
 pub use null::{NullError, NullModel};
 pub use particles::{kld_bound, Cluster, McConfig, MotionNoise, ParticleError, ParticleSet, Weighed};

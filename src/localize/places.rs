@@ -178,6 +178,20 @@ impl<const K: usize> Places<K> {
         self.with_evidence(|e| standing(e, &self.since, self.bound))
     }
 
+    /// The best place's smallest lead, over the null and every other as
+    /// the test counts it (nats; at least the bound when one leads); 0 with
+    /// no place living, the null alone. Places whose evidence is NaN are
+    /// passed over.
+    pub fn best_margin(&self) -> f32 {
+        self.with_evidence(|e| {
+            (0..e.len())
+                .map(|i| margin(e, &self.since, i, self.bound))
+                .filter(|m| !m.is_nan())
+                .fold(None, |b: Option<f32>, m| Some(b.map_or(m, |b| b.max(m))))
+                .unwrap_or(0.0)
+        })
+    }
+
     fn with_evidence<T>(&self, f: impl FnOnce(&[f32]) -> T) -> T {
         let mut evidence = [0.0f32; K];
         for (e, p) in evidence.iter_mut().zip(&self.living) {

@@ -6,7 +6,7 @@
 
 use echoloc::credence::net::CredenceNet;
 use echoloc::driver::SpeedOfSound;
-use echoloc::localize::{self, Localizer, LocalizerConfig, Mode};
+use echoloc::localize::{self, Localizer, LocalizerConfig, Mode, PlaceTest};
 use echoloc::map::{FieldView, MapSource};
 use echoloc::predict::{Mount, PredictParams};
 use echoloc::referencing::calibration::{CalibrationConfig, HeadingBias};
@@ -361,6 +361,9 @@ pub struct Switches {
     /// The places the hypothesis bank keeps (`LocalizerConfig::bank_keep`);
     /// `None`: the default.
     pub bank: Option<u8>,
+    /// The sequential test's bound (`LocalizerConfig::place_test`, the
+    /// rest `PlaceTest::DEFAULT`); `None`: the cluster's hand-off.
+    pub place_test: Option<f32>,
 }
 
 impl Switches {
@@ -373,6 +376,7 @@ impl Switches {
         particles: true,
         handoff_z: None,
         bank: None,
+        place_test: None,
     };
 }
 
@@ -496,6 +500,7 @@ fn run_with<M: MapSource, const N: usize>(
     let lcfg = LocalizerConfig {
         handoff_z: start.switches.handoff_z.unwrap_or(d.handoff_z),
         bank_keep: start.switches.bank.unwrap_or(d.bank_keep),
+        place_test: start.switches.place_test.map(|bound| PlaceTest { bound, ..PlaceTest::DEFAULT }),
         ..d
     };
     let mut loc: Box<Localizer<N>> = Box::new(Localizer::new(lcfg, cfg, verdicts, start.seed));

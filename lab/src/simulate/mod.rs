@@ -117,6 +117,12 @@ pub struct SimulateArgs {
     /// measure what more do.
     #[arg(long = "bank", value_parser = clap::value_parser!(u8).range(0..=8))]
     bank: Option<u8>,
+    /// The hand-off decided by the sequential test between places that
+    /// track themselves and the null, at this bound in nats
+    /// (`LocalizerConfig::place_test`, issue #48; default: the cluster's
+    /// hand-off). `--place-test 150` is `PlaceTest::DEFAULT`.
+    #[arg(long = "place-test", value_parser = parse_bound)]
+    place_test: Option<f32>,
     /// Writes one CSV row per ring cycle: the mode, the estimate, its σ and
     /// the true pose (docs/localization.md).
     #[arg(long)]
@@ -179,6 +185,7 @@ pub fn simulate_cmd(a: &SimulateArgs) -> Result<String, LabError> {
         particles: !a.no_particles,
         handoff_z: a.handoff_z,
         bank: a.bank,
+        place_test: a.place_test,
     };
     if a.scans.from_scans.is_some() {
         if a.scenario.is_some() || !a.kidnap.is_empty() {
@@ -336,6 +343,14 @@ impl Progress {
         if let Some(b) = self.bar.take() {
             b.finish_and_clear();
         }
+    }
+}
+
+/// `--place-test`: a finite positive number of nats.
+fn parse_bound(s: &str) -> Result<f32, String> {
+    match s.parse::<f32>() {
+        Ok(b) if b.is_finite() && b > 0.0 => Ok(b),
+        _ => Err(format!("{s:?} is not a finite number of nats > 0")),
     }
 }
 

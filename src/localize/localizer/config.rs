@@ -88,6 +88,59 @@ pub struct LocalizerConfig {
     pub fit_drop: f32,
     /// ... for this many cycles in a row wakes the particles (0: off).
     pub fit_cycles: u8,
+    /// The hand-off decided by the sequential test between places that
+    /// track themselves and the null ([`crate::localize::places`], issue
+    /// #48) instead of the cluster's weight and lead; `None`: the cluster's.
+    pub place_test: Option<PlaceTest>,
+}
+
+/// The sequential test's settings when it decides the hand-off: each
+/// cycle the particles' heaviest cluster (holding at least
+/// `cluster_weight`) and the sweep's best `proposals` places are proposed
+/// to a bank of [`PLACES`] places, each corrected by the field as it goes;
+/// the hand-off goes to the place `bound` ahead of the null and every
+/// other.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct PlaceTest {
+    /// The test's bound, nats.
+    pub bound: f32,
+    /// The sweep's places proposed a cycle (best first).
+    pub proposals: u8,
+    /// The cluster is proposed when it holds this share of the weight.
+    pub cluster_weight: f32,
+    /// A sweep's proposal starts with these standard deviations (m, m,
+    /// rad); the cluster's with its own covariance, at least `floor`.
+    pub sweep_sigma: [f32; 3],
+    /// See `sweep_sigma`.
+    pub floor: [f32; 3],
+    /// A reading's log-ratio over the null is clipped to `±clip`, nats.
+    pub clip: f32,
+    /// The share of readings that are the expected echo
+    /// ([`crate::localize::place::Tracking::hit_share`]).
+    pub hit_share: f32,
+    /// The null's memory, readings ([`crate::localize::NullModel`]).
+    pub null_memory: f32,
+}
+
+/// The places the test weighs at once.
+pub const PLACES: usize = 8;
+
+impl PlaceTest {
+    /// As measured on the simulator (docs/localization.md, *the bank end
+    /// to end*): the bound 150 nats, four of the sweep's places a cycle,
+    /// the cluster from a tenth of the weight, a reading clipped to 2 nats,
+    /// half the readings the expected echo, the null remembering 400.
+    pub const DEFAULT: Self = Self {
+        bound: 150.0,
+        proposals: 4,
+        cluster_weight: 0.1,
+        sweep_sigma: [0.15, 0.15, 0.05],
+        floor: [0.1, 0.1, 0.05],
+        clip: 2.0,
+        hit_share: 0.5,
+        null_memory: 400.0,
+    };
 }
 
 impl LocalizerConfig {
@@ -122,5 +175,6 @@ impl LocalizerConfig {
         fit_slow: 0.02,
         fit_drop: 0.45,
         fit_cycles: 3,
+        place_test: None,
     };
 }

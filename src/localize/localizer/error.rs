@@ -22,6 +22,10 @@ pub enum LocalizeError {
         /// The transducer.
         transducer: u8,
     },
+    /// The place test's settings were refused: a bound that is not a
+    /// finite positive number of nats, or a null memory shorter than the
+    /// null's bins ([`crate::localize::NullModel::new`]).
+    PlaceTest,
     /// The EKF refused.
     Ekf(EkfError),
     /// Prediction or the EKF refused a reading.
@@ -59,6 +63,9 @@ impl core::fmt::Display for LocalizeError {
             Self::NotFinite => f.write_str("a non-finite pose, standard deviation or odometry"),
             Self::RingBeyondField { transducer } => {
                 write!(f, "transducer {transducer} stands beyond the field's reach (compile the map with more reach)")
+            }
+            Self::PlaceTest => {
+                f.write_str("the place test's settings: a bound that is not a positive number of nats, or too short a null memory")
             }
             Self::Ekf(e) => write!(f, "EKF: {e:?}"),
             Self::Referencer(e) => write!(f, "{e:?}"),

@@ -21,16 +21,18 @@
 //! | [`config`] | [`LocalizerConfig`]: the hand-off's, the wake-up's and the fit monitor's settings |
 //! | [`report`] | [`Mode`], [`CycleReport`], [`LocalizerCounts`]: what it says it did |
 //! | [`error`] | [`LocalizeError`] |
+//! | `judge` | the hand-off by the sequential test between places that track themselves and the null (`LocalizerConfig::place_test`) |
 //! | `monitor` | the fit monitor: do the readings still fit the EKF's pose? |
 //! | `verify` | the search's proposals and the hypothesis bank's places scored against the cluster on the last cycles' readings |
 
 pub mod config;
 pub mod error;
+mod judge;
 mod monitor;
 pub mod report;
 mod verify;
 
-pub use config::{LocalizerConfig, MAX_SENSED};
+pub use config::{LocalizerConfig, PlaceTest, MAX_SENSED, PLACES};
 pub use error::LocalizeError;
 pub use report::{CycleReport, LocalizerCounts, Mode};
 
@@ -39,6 +41,8 @@ use heapless::Vec;
 use super::expect::FieldLookup;
 use super::history::History;
 use super::hypotheses::{Bank, Hypothesis};
+use super::places::{Places, Standing};
+use judge::Judge;
 use super::particles::{Cluster, ParticleSet, Sensed, Weighed};
 use super::scan::{Candidate, Sweep, SCAN_KEEP};
 use crate::credence::Credence;
@@ -96,6 +100,9 @@ pub struct Localizer<const N: usize> {
     /// as beaten when it is not proposed nor draw level when the feature
     /// leaves the history.
     bank: Bank,
+    /// With `place_test` set: the places that track themselves, and the
+    /// null, whose test decides the hand-off.
+    judge: Option<Judge>,
     converged: u8,
     sweep: Sweep,
     history: History,
@@ -137,6 +144,7 @@ impl<const N: usize> Localizer<N> {
             offset: [0.0; 3],
             cluster: None,
             bank: Bank::new(),
+            judge: None,
             converged: 0,
             sweep: Sweep::default(),
             history: History::new(),
@@ -153,6 +161,10 @@ impl<const N: usize> Localizer<N> {
     /// the EKF's settings and its odometry calibration are kept.
     pub fn start(&mut self, start: Start, field: &FieldView<'_>) -> Result<(), LocalizeError> {
         let lookup = FieldLookup::new(field);
+        self.judge = match &self.cfg.place_test {
+            Some(t) => Some(Judge::new(t, &self.cfg.mcl.beam)?),
+            None => None,
+        };
         match start {
             Start::Known { pose, sigma } => {
                 self.referencer.ekf.relocate_diagonal(pose, sigma)?;
@@ -320,8 +332,32 @@ impl<const N: usize> Localizer<N> {
                 if !same {
                     self.bank.clear();
                 }
-                report.lead = self.verify(&mut candidates, cluster.as_ref(), &lookup);
-                report.hypotheses = u8::from(cluster.is_some()).saturating_add(self.bank.len() as u8);
+                // With the place test, it alone decides: the proposals go
+                // to the places as the sweep gave them, and the cluster's
+                // count and bank stand still.
+                let mut leader = None;
+                if let (Some(test), Some(judge)) = (&cfg.place_test, self.judge.as_mut()) {
+                    let ekf = self.referencer.ekf.config();
+                    let standing = judge.cycle(
+                        test,
+                        &self.sensed,
+                        &offset,
+                        cluster.as_ref(),
+                        &candidates,
+                        &lookup,
+                        &cfg.mcl.beam,
+                        ekf,
+                    )?;
+                    let living = judge.places.living();
+                    report.hypotheses = living.len() as u8;
+                    report.lead = judge.places.best_margin();
+                    if let Standing::Leads { index, .. } = standing {
+                        leader = living.get(index).map(|p| (p.pose(), p.covariance()));
+                    }
+                } else {
+                    report.lead = self.verify(&mut candidates, cluster.as_ref(), &lookup);
+                    report.hypotheses = u8::from(cluster.is_some()).saturating_add(self.bank.len() as u8);
+                }
                 let lead = report.lead;
                 // While the EKF beside the particles still has its own
                 // readings (its gate's monitor does not say lost), the
@@ -342,14 +378,20 @@ impl<const N: usize> Localizer<N> {
                 // A cycle where the cluster keeps half the weight but not the
                 // hand-off's share, or its lead, counts one down.
                 self.converged = match (weight >= cfg.handoff_weight && enough && ahead, same, weight >= 0.5) {
+                    _ if cfg.place_test.is_some() => 0,
                     (true, true, _) => self.converged.saturating_add(1),
                     (true, false, _) => 1,
                     (false, true, true) => self.converged.saturating_sub(1),
                     _ => 0,
                 };
-                match cluster {
-                    Some(c) if self.converged >= cfg.handoff_cycles => {
-                        self.handoff(&c, &offset)?;
+                match (leader, cluster) {
+                    // The place already took the cycle's odometry.
+                    (Some((x, p)), _) => {
+                        self.handoff(x, p, None)?;
+                        report.handoff = true;
+                    }
+                    (None, Some(c)) if self.converged >= cfg.handoff_cycles => {
+                        self.handoff(c.mean, c.covariance, Some(&offset))?;
                         report.handoff = true;
                     }
                     _ => {
@@ -391,6 +433,9 @@ impl<const N: usize> Localizer<N> {
                             self.calm = 0;
                             self.cluster = None;
                             self.bank.clear();
+                            if let Some(j) = self.judge.as_mut() {
+                                j.clear();
+                            }
                             self.fit.1 = self.fit.0;
                             self.misfit = 0;
                             self.counts.calmed = self.counts.calmed.saturating_add(1);
@@ -428,22 +473,30 @@ impl<const N: usize> Localizer<N> {
         Ok(report)
     }
 
-    /// The EKF starts at the cluster (at the cycle's start), then takes the
-    /// cycle's odometry.
-    fn handoff(&mut self, c: &Cluster, offset: &Motion) -> Result<(), LocalizeError> {
+    /// The EKF starts at `x` with covariance `p` (its variances at least
+    /// the floor's), then takes the cycle's odometry if `offset` says so
+    /// (the cluster's mean is at the cycle's start; a place is already at
+    /// the next one's).
+    fn handoff(&mut self, x: [f32; 3], mut p: [[f32; 3]; 3], offset: Option<&Motion>) -> Result<(), LocalizeError> {
         self.ekf_awake = false;
         self.calm = 0;
         let f = &self.cfg.handoff_sigma_floor;
-        let mut p = c.covariance;
-        for (i, row) in p.iter_mut().enumerate() {
-            row[i] = row[i].max(f[i] * f[i]);
+        for (i, (row, f)) in p.iter_mut().zip(f).enumerate() {
+            if let Some(v) = row.get_mut(i) {
+                *v = v.max(f * f);
+            }
         }
-        self.referencer.ekf.relocate(c.mean, p)?;
-        self.referencer.ekf.predict(offset)?;
+        self.referencer.ekf.relocate(x, p)?;
+        if let Some(offset) = offset {
+            self.referencer.ekf.predict(offset)?;
+        }
         self.mode = Mode::Tracking;
         self.converged = 0;
         self.cluster = None;
         self.bank.clear();
+        if let Some(j) = self.judge.as_mut() {
+            j.clear();
+        }
         self.counts.handoffs = self.counts.handoffs.saturating_add(1);
         Ok(())
     }
@@ -465,6 +518,9 @@ impl<const N: usize> Localizer<N> {
         self.calm = 0;
         self.converged = 0;
         self.bank.clear();
+        if let Some(j) = self.judge.as_mut() {
+            j.clear();
+        }
         self.cluster = self.particles.cluster(c.handoff_radius_m, c.handoff_angle_rad);
         self.counts.wakes = self.counts.wakes.saturating_add(1);
         Ok(())
@@ -523,6 +579,13 @@ impl<const N: usize> Localizer<N> {
             Mode::Searching => (self.cluster.as_ref(), self.bank.members()),
             _ => (None, &[]),
         }
+    }
+
+    /// The place test's living places (with `place_test` set; at the last
+    /// cycle's end, carried to the next cycle's start): each with its pose,
+    /// covariance and evidence over the null. For a viewer.
+    pub fn places(&self) -> Option<&Places<PLACES>> {
+        self.judge.as_ref().map(|j| &j.places)
     }
 
     /// The settings.
