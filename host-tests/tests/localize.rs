@@ -15,8 +15,8 @@
 
 use echoloc::credence::net::CredenceNet;
 use echoloc::localize::{
-    kld_bound, BeamModel, FieldLookup, LocalizeError, Localizer, LocalizerConfig, McConfig, Mode, ParticleSet, PlaceTest,
-    Rng, Sensed, Start,
+    kld_bound, BeamModel, FieldLookup, LocalizeError, Localizer, LocalizerConfig, McConfig, Mode, ParticleSet,
+    PlaceTest, Rng, Sensed, Start,
 };
 use echoloc::map::{BlobError, Expected, FieldView, MapSource, MapView};
 use echoloc::predict::{predict_mount, Mount, Pose, PredictParams, PIONEER16};
@@ -588,4 +588,3 @@ fn the_place_test_refuses_bad_settings() {
         assert_eq!(loc.start(Start::Unknown, map.field()), Err(LocalizeError::PlaceTest), "{bad:?}");
     }
 }
-

@@ -64,9 +64,9 @@ impl core::fmt::Display for LocalizeError {
             Self::RingBeyondField { transducer } => {
                 write!(f, "transducer {transducer} stands beyond the field's reach (compile the map with more reach)")
             }
-            Self::PlaceTest => {
-                f.write_str("the place test's settings: a bound that is not a positive number of nats, or too short a null memory")
-            }
+            Self::PlaceTest => f.write_str(
+                "the place test's settings: a bound that is not a positive number of nats, or too short a null memory",
+            ),
             Self::Ekf(e) => write!(f, "EKF: {e:?}"),
             Self::Referencer(e) => write!(f, "{e:?}"),
         }

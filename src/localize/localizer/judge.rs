@@ -32,7 +32,8 @@ impl Judge {
     /// refuses.
     pub(super) fn new(test: &PlaceTest, beam: &BeamModel) -> Result<Self, LocalizeError> {
         let places = Places::new(test.bound).map_err(|_| LocalizeError::PlaceTest)?;
-        let null = NullModel::new(beam.r_min_mm, beam.r_max_mm, test.null_memory).map_err(|_| LocalizeError::PlaceTest)?;
+        let null =
+            NullModel::new(beam.r_min_mm, beam.r_max_mm, test.null_memory).map_err(|_| LocalizeError::PlaceTest)?;
         Ok(Self { places, null })
     }
 

@@ -41,9 +41,8 @@ use heapless::Vec;
 use super::expect::FieldLookup;
 use super::history::History;
 use super::hypotheses::{Bank, Hypothesis};
-use super::places::{Places, Standing};
-use judge::Judge;
 use super::particles::{Cluster, ParticleSet, Sensed, Weighed};
+use super::places::{Places, Standing};
 use super::scan::{Candidate, Sweep, SCAN_KEEP};
 use crate::credence::Credence;
 use crate::f32math::{sin_cos, sqrt};
@@ -54,6 +53,7 @@ use crate::referencing::{
     wrap, CycleUpdates, Ekf, EkfConfig, Motion, Reading, ReadingReport, Referencer, Verdict, VerdictConfig,
     VerdictCounts,
 };
+use judge::Judge;
 
 /// Where the localizer starts.
 #[derive(Clone, Copy, Debug, PartialEq)]
