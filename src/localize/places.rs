@@ -230,7 +230,13 @@ impl<const K: usize> Places<K> {
         if keep.iter().take(n).all(|&k| k) {
             return;
         }
-        let kept: Vec<usize, K> = (0..n).filter(|&i| keep.get(i).copied().unwrap_or(true)).collect();
+        // Pushed one by one: `collect` into a `heapless::Vec` panics on
+        // overflow (it cannot overflow here, `n` ≤ K, but the core has no
+        // panic path).
+        let mut kept: Vec<usize, K> = Vec::new();
+        for i in (0..n).filter(|&i| keep.get(i).copied().unwrap_or(true)) {
+            let _ = kept.push(i);
+        }
         let mut since = [[0.0f32; K]; K];
         for (row, &x) in since.iter_mut().zip(&kept) {
             for (v, &y) in row.iter_mut().zip(&kept) {
