@@ -4,7 +4,8 @@
 //! and link bytes read from flash partitions, poses from memory):
 //! validating the map, predicting rings with both strategies and the
 //! geometric search, the whole loop (ring driver over the replay bench,
-//! odometry, prediction, credence, verdicts, EKF, lost monitor), the host
+//! odometry, prediction, credence, verdicts, EKF, lost monitor, the
+//! localizer's search with either hand-off), the host
 //! link's decoder and encoder, the link over a serial port with the
 //! odometry sync, and the threshold method. Its panic handler calls a
 //! function that is declared but defined nowhere, so the program links only
@@ -26,7 +27,7 @@ use echoloc::controller::{OdometrySample, OdometrySync};
 use echoloc::credence::net::CredenceNet;
 use echoloc::link::frame::{encode, Decoder};
 use echoloc::link::{FromController, Link, ToController};
-use echoloc::localize::Start;
+use echoloc::localize::{PlaceTest, Start};
 use echoloc::map::{MapSource, MapView};
 use echoloc::predict::{nearest_in_window, predict_ring, Mount, Pose, PredictParams, PIONEER16};
 use echoloc::referencing::{MountM, Target, Threshold, ThresholdConfig};
@@ -127,9 +128,15 @@ fn main() -> ! {
         }
         // The whole loop over a scenario, through the ring driver.
         let params = PredictParams::new(window);
-        if let (Ok(setup), Ok(s)) =
+        if let (Ok(mut setup), Ok(s)) =
             (ReplaySetup::<16>::standard(params), Scenario::parse(claimed(partition(SCENARIO_AT, SCENARIO_LEN), 0)))
         {
+            // The hand-off by the cluster or by the sequential test between
+            // places (issue #48), as the input says: both reachable.
+            let bound = f32_at(input, 12);
+            if bound > 0.0 {
+                setup.localizer.place_test = Some(PlaceTest { bound, ..PlaceTest::DEFAULT });
+            }
             let mut mounts = [Mount { x_mm: 0, y_mm: 0, heading_mdeg: 0 }; 16];
             for (i, m) in mounts.iter_mut().enumerate() {
                 *m = s.mount(i).unwrap_or(*m);
