@@ -14,6 +14,10 @@
 #                                             # (e.g. --heard-face-deg 15: another conversion's physics;
 #                                             # --sonar harsh: issue #49's harsher sonar)
 #   bash scripts/real-buildings.sh --harsh-parts   # what each part of --sonar harsh adds, seed 1, a table
+#   bash scripts/real-buildings.sh --no-pose 10 [simulate args]   # from no pose, seeds 1..10, every building,
+#                                             # both firings: a line a run (found at, wrong hand-offs, far-off
+#                                             # cycles and their share reported searching or lost), then a
+#                                             # summary (e.g. --place-test 150: issue #48's hand-off)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 data=../shared/data/real
@@ -36,6 +40,29 @@ splits=("intel intel-corrected.log.gz 228: 0:228" "aces aces-corrected.log.gz :3
   "freiburg-079 freiburg-079-corrected.log.gz :1000,2500: 1000:2500")
 if [ "${1:-}" = "--short" ]; then
   splits=("intel intel-corrected.log.gz 60: 0:60" "freiburg-079 freiburg-079-corrected.log.gz :1000,1400: 1000:1400")
+fi
+
+if [ "${1:-}" = "--no-pose" ]; then
+  n=${2:?--no-pose N}
+  shift 2
+  for s in "${splits[@]}"; do
+    read -r name file map_pass run_pass <<<"$s"
+    $L map from-scans "$data/$file" --pass "$map_pass" -o "$out/$name.yaml" >/dev/null
+    for fire in along-path at-scans; do
+      for seed in $(seq 1 "$n"); do
+        $L simulate --from-scans "$data/$file" --pass "$run_pass" --map "$out/$name.yaml" --walls "$walls" \
+          --fire "$fire" --seed "$seed" --start unknown --json "$@" |
+          python3 -c "
+import json, sys
+r = json.load(sys.stdin); l = r['localization']; f = l['first_convergence']
+print('$name', '$fire', $seed, '%.1f' % f['distance_m'] if f else 'never', len(l['wrong_handoffs']),
+      '%.4f' % (l['off_fraction'] or 0), '-' if l['off_cycles_known'] is None else '%.4f' % l['off_cycles_known'],
+      '%.3f' % (l['final_error_m'] if l['final_error_m'] is not None else -1), int(bool(l['ended_off'])))"
+      done
+    done
+  done | tee /dev/stderr | awk '{ k = $1 " " $2; n[k]++; if ($4 != "never" && $4 <= 60) f60[k]++; if ($5 > 0) w[k]++; e[k] += $9 }
+    END { for (k in n) printf "%s: %d runs, found within 60 m %d, runs with a wrong hand-off %d, ended off %d\n", k, n[k], f60[k], w[k], e[k] }' | sort
+  exit 0
 fi
 
 if [ "${1:-}" = "--seeds" ]; then
