@@ -142,7 +142,7 @@ impl Place {
             return Err(EkfError::OutOfRange);
         }
         let mut p: M3 = [[0.0; 3]; 3];
-        for (i, row) in p.iter_mut().enumerate() {
+        for (i, row) in (0..3).zip(p.iter_mut()) {
             row[i] = sigma[i] * sigma[i];
         }
         let mut g = PoseGaussian::new([pose[0], pose[1], wrap(pose[2])], p);

@@ -99,9 +99,10 @@ fn margin<R: AsRef<[f32]>>(evidence: &[f32], since: &[R], i: usize, bound: f32) 
     if e.is_nan() {
         return f32::NAN;
     }
-    evidence
-        .iter()
-        .enumerate()
+    // Indices by a bounded range, not `enumerate`: its counter carries an
+    // overflow check the optimiser cannot remove (scripts/panic-never.sh).
+    (0..evidence.len())
+        .zip(evidence.iter())
         .filter(|&(j, x)| j != i && !x.is_nan())
         .map(|(j, &x)| if x >= bound { lead(evidence, since, i, j) } else { e - x })
         .fold(e, f32::min)
@@ -210,7 +211,7 @@ impl<const K: usize> Places<K> {
     fn born(&mut self, i: usize) {
         let own = self.living.get(i).map_or(0.0, Place::evidence);
         let mut row = [0.0f32; K];
-        for (j, (r, p)) in row.iter_mut().zip(&self.living).enumerate() {
+        for (j, (r, p)) in (0..K).zip(row.iter_mut().zip(&self.living)) {
             *r = if j == i { own } else { p.evidence() };
         }
         if let Some(r) = self.since.get_mut(i) {
@@ -244,12 +245,21 @@ impl<const K: usize> Places<K> {
             }
         }
         self.since = since;
-        let mut i = 0;
-        self.living.retain(|_| {
-            let k = keep.get(i).copied().unwrap_or(true);
-            i += 1;
-            k
-        });
+        // Compacted in place, the write slots from a bounded range: neither
+        // `Vec::retain` nor a counter, whose arithmetic keeps overflow
+        // checks the optimiser cannot remove (scripts/panic-never.sh).
+        let mut slots = 0..K;
+        for (r, &k) in (0..n).zip(keep.iter()) {
+            if !k {
+                continue;
+            }
+            if let (Some(p), Some(w)) = (self.living.get(r).copied(), slots.next()) {
+                if let Some(dst) = self.living.get_mut(w) {
+                    *dst = p;
+                }
+            }
+        }
+        self.living.truncate(slots.start);
     }
 
     /// A proposed place (its evidence is taken as it is: a new one's is 0,
@@ -258,7 +268,8 @@ impl<const K: usize> Places<K> {
     /// that one trails it.
     pub fn propose(&mut self, place: Place) -> Proposal {
         let p = place.pose();
-        if let Some(i) = self.living.iter().position(|q| within(&q.pose(), &p, SAME_PLACE_M, SAME_PLACE_RAD)) {
+        let near = (0..K).zip(self.living.iter()).find(|(_, q)| within(&q.pose(), &p, SAME_PLACE_M, SAME_PLACE_RAD));
+        if let Some((i, _)) = near {
             return Proposal::Held(i);
         }
         if self.living.push(place).is_ok() {
@@ -266,10 +277,8 @@ impl<const K: usize> Places<K> {
             self.born(i);
             return Proposal::Joined(i);
         }
-        let weakest = self
-            .living
-            .iter()
-            .enumerate()
+        let weakest = (0..K)
+            .zip(self.living.iter())
             .min_by(|a, b| a.1.evidence().total_cmp(&b.1.evidence()))
             .map(|(i, q)| (i, q.evidence()));
         match weakest {
@@ -308,8 +317,8 @@ impl<const K: usize> Places<K> {
         // Merge: of two converged places the one with fewer cycles goes
         // (of two as old, the later one).
         let mut keep = [true; K];
-        for (i, (k, a)) in keep.iter_mut().zip(&self.living).enumerate() {
-            *k = !self.living.iter().enumerate().any(|(j, b)| {
+        for (i, (k, a)) in (0..K).zip(keep.iter_mut().zip(&self.living)) {
+            *k = !(0..K).zip(self.living.iter()).any(|(j, b)| {
                 j != i
                     && within(&a.pose(), &b.pose(), MERGE_M, MERGE_RAD)
                     && (b.cycles() > a.cycles() || (b.cycles() == a.cycles() && j < i))
@@ -321,7 +330,7 @@ impl<const K: usize> Places<K> {
         let bound = self.bound;
         let mut keep = [true; K];
         self.with_evidence(|e| {
-            for (i, k) in keep.iter_mut().enumerate().take(e.len()) {
+            for (i, k) in (0..e.len()).zip(keep.iter_mut()) {
                 let behind = e.get(i).is_some_and(|&x| x <= -bound)
                     || (0..e.len()).any(|j| j != i && lead(e, &self.since, j, i) >= bound);
                 *k = !behind;

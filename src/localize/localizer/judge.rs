@@ -66,7 +66,7 @@ impl Judge {
         if let Some(c) = cluster.filter(|c| c.weight >= test.cluster_weight) {
             let p = &c.covariance;
             let mut sigma = [0.0f32; 3];
-            for (i, (s, f)) in sigma.iter_mut().zip(test.floor).enumerate() {
+            for (i, (s, f)) in (0..3).zip(sigma.iter_mut().zip(test.floor)) {
                 let v = p.get(i).and_then(|r| r.get(i)).copied().unwrap_or(0.0);
                 *s = crate::f32math::sqrt(v.max(f * f));
             }

@@ -481,7 +481,7 @@ impl<const N: usize> Localizer<N> {
         self.ekf_awake = false;
         self.calm = 0;
         let f = &self.cfg.handoff_sigma_floor;
-        for (i, (row, f)) in p.iter_mut().zip(f).enumerate() {
+        for (i, (row, f)) in (0..3).zip(p.iter_mut().zip(f)) {
             if let Some(v) = row.get_mut(i) {
                 *v = v.max(f * f);
             }
