@@ -42,8 +42,11 @@ if [ "${1:-}" = "--short" ]; then
   splits=("intel intel-corrected.log.gz 60: 0:60" "freiburg-079 freiburg-079-corrected.log.gz :1000,1400: 1000:1400")
 fi
 
-if [ "${1:-}" = "--no-pose" ]; then
-  n=${2:?--no-pose N}
+# Every building, both firings, seeds 1..$1: the run simulated with the
+# rest of the arguments, its JSON read by the Python program $2, which gets
+# the building, the firing and the seed as its arguments and prints a line.
+each_run() {
+  local n=$1 py=$2
   shift 2
   for s in "${splits[@]}"; do
     read -r name file map_pass run_pass <<<"$s"
@@ -51,16 +54,22 @@ if [ "${1:-}" = "--no-pose" ]; then
     for fire in along-path at-scans; do
       for seed in $(seq 1 "$n"); do
         $L simulate --from-scans "$data/$file" --pass "$run_pass" --map "$out/$name.yaml" --walls "$walls" \
-          --fire "$fire" --seed "$seed" --start unknown --json "$@" |
-          python3 -c "
-import json, sys
-r = json.load(sys.stdin); l = r['localization']; f = l['first_convergence']
-print('$name', '$fire', $seed, '%.1f' % f['distance_m'] if f else 'never', len(l['wrong_handoffs']),
-      '%.4f' % (l['off_fraction'] or 0), '-' if l['off_cycles_known'] is None else '%.4f' % l['off_cycles_known'],
-      '%.3f' % (l['final_error_m'] if l['final_error_m'] is not None else -1), int(bool(l['ended_off'])))"
+          --fire "$fire" --seed "$seed" --json "$@" | python3 -c "$py" "$name" "$fire" "$seed"
       done
     done
-  done | tee /dev/stderr | awk '{ k = $1 " " $2; n[k]++; if ($4 != "never" && $4 <= 60) f60[k]++; if ($5 > 0) w[k]++; e[k] += $9 }
+  done
+}
+
+if [ "${1:-}" = "--no-pose" ]; then
+  n=${2:?--no-pose N}
+  shift 2
+  each_run "$n" "
+import json, sys
+r = json.load(sys.stdin); l = r['localization']; f = l['first_convergence']
+print(*sys.argv[1:], '%.1f' % f['distance_m'] if f else 'never', len(l['wrong_handoffs']),
+      '%.4f' % (l['off_fraction'] or 0), '-' if l['off_cycles_known'] is None else '%.4f' % l['off_cycles_known'],
+      '%.3f' % (l['final_error_m'] if l['final_error_m'] is not None else -1), int(bool(l['ended_off'])))" --start unknown "$@" |
+    tee /dev/stderr | awk '{ k = $1 " " $2; n[k]++; if ($4 != "never" && $4 <= 60) f60[k]++; if ($5 > 0) w[k]++; e[k] += $9 }
     END { for (k in n) printf "%s: %d runs, found within 60 m %d, runs with a wrong hand-off %d, ended off %d\n", k, n[k], f60[k], w[k], e[k] }' | sort
   exit 0
 fi
@@ -68,21 +77,12 @@ fi
 if [ "${1:-}" = "--seeds" ]; then
   n=${2:?--seeds N}
   shift 2
-  for s in "${splits[@]}"; do
-    read -r name file map_pass run_pass <<<"$s"
-    $L map from-scans "$data/$file" --pass "$map_pass" -o "$out/$name.yaml" >/dev/null
-    for fire in along-path at-scans; do
-      for seed in $(seq 1 "$n"); do
-        $L simulate --from-scans "$data/$file" --pass "$run_pass" --map "$out/$name.yaml" --walls "$walls" \
-          --fire "$fire" --seed "$seed" --json "$@" |
-          python3 -c "
+  each_run "$n" "
 import json, sys
 r = json.load(sys.stdin); e = r['ekf']; l = r['localization']
-print('$name', '$fire', $seed, e['position_rmse_m'], e['heading_rmse_deg'], e['max_position_error_m'], l['off_fraction'],
-      l['off_cycles_known'] if l['off_cycles_known'] is not None else '-', r['verdicts']['confirmed_fraction'], r['at_truth']['confirmed_fraction'])"
-      done
-    done
-  done | tee /dev/stderr | awk '{ k = $1 " " $2; n[k]++; if ($4 <= 0.15 && $5 <= 2.0 && $7 <= 0.01) ok[k]++; s[k] += $4; h[k] += $5; if ($4 > w[k]) w[k] = $4;
+print(*sys.argv[1:], e['position_rmse_m'], e['heading_rmse_deg'], e['max_position_error_m'], l['off_fraction'],
+      l['off_cycles_known'] if l['off_cycles_known'] is not None else '-', r['verdicts']['confirmed_fraction'], r['at_truth']['confirmed_fraction'])" "$@" |
+    tee /dev/stderr | awk '{ k = $1 " " $2; n[k]++; if ($4 <= 0.15 && $5 <= 2.0 && $7 <= 0.01) ok[k]++; s[k] += $4; h[k] += $5; if ($4 > w[k]) w[k] = $4;
     c[k] += $10; if (!(k in lo) || $10 < lo[k]) lo[k] = $10; if ($10 > hi[k]) hi[k] = $10 }
     END { for (k in n) printf "%s: %d runs, %d within 15 cm, 2 deg and 1 %% off; mean RMSE %.3f m, %.2f deg; worst %.3f m; confirmed at truth %.3f (%.3f-%.3f)\n", k, n[k], ok[k], s[k] / n[k], h[k] / n[k], w[k], c[k] / n[k], lo[k], hi[k] }' | sort
   exit 0
