@@ -49,11 +49,15 @@ pub struct CycleReport {
     /// What weighing the particles did (while searching).
     pub weighed: Weighed,
     /// How far the heaviest cluster led the search's best proposal
-    /// elsewhere on the last cycles' readings, nats (while searching).
+    /// elsewhere on the last cycles' readings, nats (while searching);
+    /// with the place test (`LocalizerConfig::place_test`), the best
+    /// place's smallest lead over the null and every other place, which
+    /// the hand-off waits to reach the bound.
     pub lead: f32,
     /// The places the search weighs (while searching): the heaviest
-    /// cluster and the hypothesis bank's places away from it. More than
-    /// one alive and level, the search goes on.
+    /// cluster and the hypothesis bank's places away from it, or with the
+    /// place test its living places. More than one alive and level, the
+    /// search goes on.
     pub hypotheses: u8,
     /// The search ended because the EKF beside it was no longer lost.
     pub calmed: bool,
