@@ -23,7 +23,9 @@ import sys
 from concurrent.futures import ThreadPoolExecutor
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-LAB = os.path.join(ROOT, "target", "release", "echoloc-lab")
+# ECHOLOC_LAB=PATH: run that build of the lab tool instead (e.g. another
+# commit's, for a before/after table from one script); it is not rebuilt.
+LAB = os.environ.get("ECHOLOC_LAB") or os.path.join(ROOT, "target", "release", "echoloc-lab")
 
 
 def field_args():
@@ -162,10 +164,11 @@ def main():
     inconsistent = float(argv[3]) if len(argv) > 3 else 0.5
     if kind not in ("global", "kidnap", "clutter", "track"):
         raise SystemExit(__doc__)
-    subprocess.run(["cargo", "build", "-q", "--release", "-p", "echoloc-lab"], cwd=ROOT, check=True)
+    if not os.environ.get("ECHOLOC_LAB"):
+        subprocess.run(["cargo", "build", "-q", "--release", "-p", "echoloc-lab"], cwd=ROOT, check=True)
     mapfile = compile_map(name)
     tag = "%s-%s" % (kind, name) + field_args()[1] + ("-%s" % argv[3] if len(argv) > 3 else "") + ("-" + "_".join(a.strip("-") for a in extra) if extra else "")
-    out_dir = os.path.join(ROOT, "target", "loc-runs", tag)
+    out_dir = os.path.join(ROOT, "target", "loc-runs", os.environ.get("RUNS_TAG", "") + tag)
     os.makedirs(out_dir, exist_ok=True)
     seeds = range(first, first + n)
     with ThreadPoolExecutor(max_workers=int(os.environ.get("JOBS", "2"))) as ex:

@@ -588,3 +588,74 @@ fn the_place_test_refuses_bad_settings() {
         assert_eq!(loc.start(Start::Unknown, map.field()), Err(LocalizeError::PlaceTest), "{bad:?}");
     }
 }
+
+/// With the sequential test (issue #48 item 4), the tracked pose is judged
+/// against the null: on readings that fit it, it never trails the null
+/// by the bound and stays *tracking*; once the readings fit nothing (drawn
+/// at random), the null's CUSUM lead over it (the report's `behind`)
+/// grows a cycle at a time and the localizer wakes on the cycle it reaches
+/// the bound (the fit monitor off, so the test alone is seen). The
+/// wake-up's search then never returns to *tracking* while the EKF beside
+/// it trails the null: only once the readings fit again, near the truth.
+#[test]
+fn the_place_test_judges_the_tracked_pose_against_the_null() {
+    let depot = Depot::load();
+    let map = depot.view();
+    let test = PlaceTest { bound: 20.0, ..PlaceTest::DEFAULT };
+    let cfg = LocalizerConfig { place_test: Some(test), fit_cycles: 0, ..LocalizerConfig::DEFAULT };
+    let mut loc = Box::new(Localizer::<1024>::new(cfg, EkfConfig::DEFAULT, VerdictConfig::POLAROID, 5));
+    loc.start(Start::Known { pose: along(0), sigma: [0.05, 0.05, 0.02] }, map.field()).unwrap();
+    let net = CredenceNet::shipped();
+    let p = params(&map);
+    let mut rng = Rng::new(17);
+    let (noise, back, cycles) = (16, 40, 72);
+    let mut woke = None;
+    let mut returned = None;
+    let mut last = 0.0f32;
+    let mut trailed_awake = 0;
+    for c in 0..cycles {
+        loc.odometry(&Motion { dx: if c == 0 { 0.0 } else { 0.25 }, dy: 0.0, dphi: 0.0 }).unwrap();
+        let reads: Vec<(Mount, Reading)> = if (noise..back).contains(&c) {
+            PIONEER16.iter().map(|m| (*m, Reading::Echo { range_mm: 200 + (rng.uniform() * 4800.0) as u32 })).collect()
+        } else {
+            readings(&map, along(c)).into_iter().map(|(m, s)| (m, s.reading)).collect()
+        };
+        for (m, r) in &reads {
+            loc.reading(&map, m, &p, &net, *r).unwrap();
+        }
+        let rep = loc.end_cycle(map.field()).unwrap();
+        assert!(rep.behind >= 0.0, "cycle {c}: {}", rep.behind);
+        match (woke, returned) {
+            (None, _) if c < noise => {
+                assert_eq!(rep.mode, Mode::Tracking, "cycle {c}");
+                assert!(rep.behind < test.bound, "cycle {c}: trails the null by {}", rep.behind);
+            }
+            (None, _) if rep.woke => {
+                assert!(rep.behind >= test.bound, "cycle {c}: woke trailing by only {}", rep.behind);
+                woke = Some(c);
+            }
+            (None, _) => {
+                // The CUSUM only grows on readings that fit nothing.
+                assert!(rep.behind < test.bound && rep.behind >= last - 1e-3, "cycle {c}: {} after {last}", rep.behind);
+                last = rep.behind;
+            }
+            (Some(_), None) if rep.handoff || rep.calmed => {
+                assert!(c >= back, "cycle {c}: back to tracking on readings that fit nothing ({rep:?})");
+                assert!(rep.handoff || rep.behind == 0.0, "cycle {c}: calmed trailing the null by {}", rep.behind);
+                let (x, t) = (loc.state(), along(c));
+                assert!((x[0] - t[0]).hypot(x[1] - t[1]) < 0.3, "cycle {c}: {x:?} against {t:?}");
+                returned = Some(c);
+            }
+            (Some(_), None) => {
+                assert_eq!(loc.mode(), Mode::Searching, "cycle {c}");
+                trailed_awake += usize::from(rep.behind > 0.0 && c >= back);
+            }
+            (Some(_), Some(_)) => {}
+        }
+    }
+    let w = woke.expect("the tracked pose was never found trailing the null");
+    assert!(w < noise + 12, "woke at cycle {w}, {} cycles into the noise", w - noise);
+    returned.expect("never back to tracking once the readings fit again");
+    // The readings fit again for some cycles while the EKF still trailed.
+    assert!(trailed_awake > 0, "the EKF caught up with the null at once");
+}

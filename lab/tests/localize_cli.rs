@@ -49,7 +49,7 @@ fn a_run_from_no_pose_with_a_kidnap_finds_itself_and_the_trace_agrees() {
     let (header, rows) = rows(&trace);
     assert_eq!(
         header,
-        "time_s,mode,x_m,y_m,theta_rad,sigma_x_m,sigma_y_m,sigma_theta_rad,ref_x_m,ref_y_m,ref_theta_rad,particles,lead_nats,cluster_weight"
+        "time_s,mode,x_m,y_m,theta_rad,sigma_x_m,sigma_y_m,sigma_theta_rad,ref_x_m,ref_y_m,ref_theta_rad,particles,lead_nats,cluster_weight,behind_nats"
     );
     assert_eq!(rows.len() as u64, l["cycles"].as_u64().unwrap());
     // The modes, counted from the trace.
@@ -66,8 +66,10 @@ fn a_run_from_no_pose_with_a_kidnap_finds_itself_and_the_trace_agrees() {
     let cfg = echoloc::localize::LocalizerConfig::DEFAULT;
     assert!(handoff[12].parse::<f32>().unwrap() >= cfg.handoff_lead, "{handoff:?}");
     assert!(handoff[13].parse::<f32>().unwrap() >= cfg.handoff_weight, "{handoff:?}");
-    // Neither is written while tracking.
+    // Neither is written while tracking; without the place test, nothing
+    // trails the null.
     assert!(rows.iter().filter(|r| r[1] == "tracking").all(|r| r[12].is_empty() && r[13].is_empty()));
+    assert!(rows.iter().all(|r| r[14] == "0.0"));
     let err = |r: &Vec<String>| {
         let p = |i: usize| r[i].parse::<f64>().unwrap();
         (p(2) - p(8)).hypot(p(3) - p(9))

@@ -135,15 +135,30 @@ impl Place {
     /// its variances within `cfg`'s bounds; no evidence yet. Refused for a
     /// non-finite, negative or out-of-range input.
     pub fn new(pose: [f32; 3], sigma: [f32; 3], cfg: &EkfConfig) -> Result<Self, EkfError> {
-        if !pose.iter().chain(sigma.iter()).all(|v| v.is_finite()) || sigma.iter().any(|&s| s < 0.0) {
+        if !sigma.iter().all(|v| v.is_finite()) || sigma.iter().any(|&s| s < 0.0) {
             return Err(EkfError::NotFinite);
-        }
-        if !in_range(&pose) {
-            return Err(EkfError::OutOfRange);
         }
         let mut p: M3 = [[0.0; 3]; 3];
         for (i, row) in (0..3).zip(p.iter_mut()) {
             row[i] = sigma[i] * sigma[i];
+        }
+        Self::with_covariance(pose, p, cfg)
+    }
+
+    /// A place at `pose` with covariance `p` (the tracker's own, to score
+    /// the tracked pose as a place), its variances within `cfg`'s bounds;
+    /// no evidence yet. Refused for a non-finite or out-of-range input, or
+    /// a negative variance.
+    pub fn with_covariance(pose: [f32; 3], p: M3, cfg: &EkfConfig) -> Result<Self, EkfError> {
+        if !pose.iter().chain(p.iter().flatten()).all(|v| v.is_finite())
+            || p[0][0] < 0.0
+            || p[1][1] < 0.0
+            || p[2][2] < 0.0
+        {
+            return Err(EkfError::NotFinite);
+        }
+        if !in_range(&pose) {
+            return Err(EkfError::OutOfRange);
         }
         let mut g = PoseGaussian::new([pose[0], pose[1], wrap(pose[2])], p);
         g.condition(&cfg.min_var, &cfg.max_var);

@@ -270,6 +270,10 @@ impl ModeLog {
                     r.cluster_weight, r.lead
                 )
             }
+            // With the place test, how far the tracked pose trailed the null.
+            (_, Some(r)) if r.woke && r.behind > 0.0 => {
+                format!("the EKF was lost (its pose trails the null by {:.1} nats): the particles woke", r.behind)
+            }
             (_, Some(r)) if r.woke => "the EKF was lost: the particles woke".to_string(),
             (_, Some(r)) if r.calmed => "the EKF beside the search was no longer lost".to_string(),
             _ => "the EKF's lost flag changed".to_string(),

@@ -151,6 +151,9 @@ pub struct CycleRow {
     /// How far the heaviest cluster led the best place found elsewhere on
     /// the last cycles' readings, nats (while searching).
     pub lead: f32,
+    /// With the place test, how far the EKF's pose trails the null, nats
+    /// (the CUSUM that says *lost* at the bound).
+    pub behind: f32,
     /// While searching, the heaviest cluster after the cycle: its mean, its
     /// position covariance (σ²x, σxy, σ²y) and its weight ...
     pub cluster: Option<([f32; 3], [f32; 3], f32)>,
@@ -569,6 +572,7 @@ fn run_with<M: MapSource, const N: usize>(
             particles: rep.particles,
             held: held as u16,
             lead: rep.lead,
+            behind: rep.behind,
             cluster,
             rival,
             hypotheses: rep.hypotheses,

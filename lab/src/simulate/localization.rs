@@ -121,10 +121,12 @@ pub fn report(t: &Trace, kidnaps: &[f64]) -> Value {
 /// The per-cycle trace as CSV (issue #27's header): the mode, the estimate
 /// and its σ, the reference where known, and while searching or lost the
 /// heaviest cluster's lead over the best place elsewhere and its weight
-/// (what the hand-off waits for).
+/// (what the hand-off waits for); with the place test, how far the EKF's
+/// pose trails the null (`behind_nats`, *lost* at the bound; 0 without
+/// the test).
 pub fn trace_csv(t: &Trace) -> String {
     let mut out = String::from(
-        "time_s,mode,x_m,y_m,theta_rad,sigma_x_m,sigma_y_m,sigma_theta_rad,ref_x_m,ref_y_m,ref_theta_rad,particles,lead_nats,cluster_weight\n",
+        "time_s,mode,x_m,y_m,theta_rad,sigma_x_m,sigma_y_m,sigma_theta_rad,ref_x_m,ref_y_m,ref_theta_rad,particles,lead_nats,cluster_weight,behind_nats\n",
     );
     for r in &t.cycles {
         let p = r.covariance;
@@ -140,7 +142,7 @@ pub fn trace_csv(t: &Trace) -> String {
             None => (String::new(), String::new(), String::new()),
         };
         out.push_str(&format!(
-            "{:.6},{},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{rx},{ry},{rt},{},{lead},{weight}\n",
+            "{:.6},{},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{rx},{ry},{rt},{},{lead},{weight},{:.1}\n",
             r.time_s,
             r.mode.name(),
             r.state[0],
@@ -150,6 +152,7 @@ pub fn trace_csv(t: &Trace) -> String {
             sd(1),
             sd(2),
             r.held,
+            r.behind,
         ));
     }
     out

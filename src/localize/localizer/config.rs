@@ -91,6 +91,10 @@ pub struct LocalizerConfig {
     /// The hand-off decided by the sequential test between places that
     /// track themselves and the null ([`crate::localize::places`], issue
     /// #48) instead of the cluster's weight and lead; `None`: the cluster's.
+    /// With it, the EKF's pose is judged against the null too: *lost* when
+    /// it trails by the bound (a CUSUM, beside the gate's counts and the
+    /// fit monitor), and after a wake-up the search ends without a hand-off
+    /// (`calm_cycles`) only while it is not behind.
     pub place_test: Option<PlaceTest>,
 }
 

@@ -3,6 +3,20 @@
 //! proposals; each joins a bank of places that track themselves
 //! ([`Places`]), and the search hands off to the one that leads the null
 //! and every other by the test's bound.
+//!
+//! While tracking, the tracked pose is judged against the null as a place
+//! (item 4): each cycle a place at the EKF's pose and covariance (at the
+//! cycle's start) scores the cycle's readings, and Page's CUSUM of the
+//! null's lead over it, `behind = max(0, behind − evidence)`, says *lost*
+//! when it reaches the bound. A sum since the hand-off would not do: a
+//! long right track banks thousands of nats that a kidnap would have to
+//! spend before the test noticed; the CUSUM is Wald's test restarted
+//! whenever the tracked place is ahead (Page 1954), so it notices a
+//! change after the bound's worth of evidence whenever it comes. After a
+//! wake-up (by the CUSUM, the EKF's gate or the fit monitor) the EKF goes
+//! on beside the search: its pose is proposed as a place every cycle, the
+//! CUSUM goes on, and the search ends without a hand-off (a calm) only
+//! while the EKF is not behind the null.
 
 use heapless::Vec;
 
@@ -16,13 +30,18 @@ use super::super::places::{Places, Standing};
 use super::super::scan::Candidate;
 use super::config::{PlaceTest, MAX_SENSED, PLACES};
 use super::error::LocalizeError;
-use crate::referencing::{EkfConfig, Motion};
+use super::monitor::back_to_start;
+use crate::referencing::{Ekf, EkfConfig, Motion};
 
-/// The test's state: the living places and the null.
+/// The test's state: the living places, the null, and how far the tracked
+/// pose trails the null.
 #[derive(Clone, Debug)]
 pub(super) struct Judge {
     pub(super) places: Places<PLACES>,
     null: NullModel,
+    /// While tracking: the null's CUSUM lead over the tracked pose, nats
+    /// (at least 0; *lost* at the bound).
+    pub(super) behind: f32,
 }
 
 impl Judge {
@@ -34,12 +53,66 @@ impl Judge {
         let places = Places::new(test.bound).map_err(|_| LocalizeError::PlaceTest)?;
         let null =
             NullModel::new(beam.r_min_mm, beam.r_max_mm, test.null_memory).map_err(|_| LocalizeError::PlaceTest)?;
-        Ok(Self { places, null })
+        Ok(Self { places, null, behind: 0.0 })
+    }
+
+    /// The null's score of each reading of the cycle, in order (then
+    /// counted by the null).
+    fn nulls(&mut self, sensed: &[Sensed]) -> Vec<f32, MAX_SENSED> {
+        let mut nulls: Vec<f32, MAX_SENSED> = Vec::new();
+        for s in sensed {
+            // `sensed` holds at most MAX_SENSED: this never refuses.
+            let _ = nulls.push(self.null.log_likelihood(s.reading));
+        }
+        nulls
+    }
+
+    /// One tracking cycle: the tracked pose (`tracked`: the EKF and the
+    /// odometry since the cycle's start, so its pose at the cycle's start
+    /// with its covariance) scores `sensed` as a place would, and the
+    /// null's CUSUM lead over it moves by the evidence. True when it has
+    /// reached the bound: the tracked pose is *lost*. Kept out of line:
+    /// its frame is the tracking cycle's end's alone.
+    #[inline(never)]
+    pub(super) fn track(
+        &mut self,
+        test: &PlaceTest,
+        sensed: &[Sensed],
+        tracked: (&Ekf, &[f32; 3]),
+        lookup: &FieldLookup<'_, '_>,
+        beam: &BeamModel,
+    ) -> bool {
+        let nulls = self.nulls(sensed);
+        let t = Tracking { lookup, beam, ekf: tracked.0.config(), clip: test.clip, hit_share: test.hit_share };
+        self.score_tracked(sensed, &nulls, tracked, &t);
+        self.behind >= test.bound
+    }
+
+    /// The tracked pose scores the cycle as a place (a pose the place
+    /// refuses, not finite or out of range, says nothing: the EKF refuses
+    /// it on its own), and the CUSUM moves; the place itself, for the
+    /// bank while the EKF runs beside the search.
+    fn score_tracked(
+        &mut self,
+        sensed: &[Sensed],
+        nulls: &[f32],
+        (e, offset): (&Ekf, &[f32; 3]),
+        t: &Tracking<'_>,
+    ) -> Option<Place> {
+        let place = Place::with_covariance(back_to_start(&e.state(), offset), e.covariance(), t.ekf).ok()?;
+        let still = Motion { dx: 0.0, dy: 0.0, dphi: 0.0 };
+        let mut scored = place;
+        let evidence = scored.cycle(sensed, nulls, &still, t).map_or(0.0, |c| c.evidence);
+        self.behind = (self.behind - evidence).max(0.0);
+        Some(place)
     }
 
     /// One ring cycle (`sensed` relative to the cycle's start, `offset`
-    /// its odometry): the cluster (at the cycle's start) and the sweep's
-    /// best `candidates` proposed, then every place corrected, scored,
+    /// its odometry): `awake` (the EKF and the odometry since the cycle's
+    /// start, while it runs beside the search after a wake-up: its pose at
+    /// the cycle's start with its covariance), the
+    /// cluster (at the cycle's start) and the sweep's best `candidates`
+    /// proposed, then every place corrected, scored,
     /// merged or dropped and carried to the next cycle's start. The
     /// proposals' σ are refused silently when not finite (nothing is
     /// proposed); a place the odometry carries out of range is dropped.
@@ -51,6 +124,7 @@ impl Judge {
         test: &PlaceTest,
         sensed: &[Sensed],
         offset: &Motion,
+        awake: Option<(&Ekf, &[f32; 3])>,
         cluster: Option<&Cluster>,
         candidates: &[Candidate],
         lookup: &FieldLookup<'_, '_>,
@@ -58,10 +132,11 @@ impl Judge {
         ekf: &EkfConfig,
     ) -> Result<Standing, LocalizeError> {
         // The null scores each reading before the places do.
-        let mut nulls: Vec<f32, MAX_SENSED> = Vec::new();
-        for s in sensed {
-            // `sensed` holds at most MAX_SENSED: this never refuses.
-            let _ = nulls.push(self.null.log_likelihood(s.reading));
+        let nulls = self.nulls(sensed);
+        let t = Tracking { lookup, beam, ekf, clip: test.clip, hit_share: test.hit_share };
+        // The EKF beside the search goes on being judged, and is a place.
+        if let Some(place) = awake.and_then(|tracked| self.score_tracked(sensed, &nulls, tracked, &t)) {
+            self.places.propose(place);
         }
         if let Some(c) = cluster.filter(|c| c.weight >= test.cluster_weight) {
             let p = &c.covariance;
@@ -79,7 +154,6 @@ impl Judge {
                 self.places.propose(place);
             }
         }
-        let t = Tracking { lookup, beam, ekf, clip: test.clip, hit_share: test.hit_share };
         self.places.cycle(sensed, &nulls, offset, &t).map_err(|e| match e {
             PlaceError::Filter(e) => LocalizeError::Ekf(e),
             // One null score a reading, by construction above.
@@ -88,7 +162,8 @@ impl Judge {
     }
 
     /// Forgets every place (the null keeps what it heard: the readings'
-    /// mix does not depend on where the robot is thought to be).
+    /// mix does not depend on where the robot is thought to be; the CUSUM
+    /// goes on judging the EKF, which a wake-up does not move).
     pub(super) fn clear(&mut self) {
         self.places.clear();
     }

@@ -21,7 +21,7 @@
 //! | [`config`] | [`LocalizerConfig`]: the hand-off's, the wake-up's and the fit monitor's settings |
 //! | [`report`] | [`Mode`], [`CycleReport`], [`LocalizerCounts`]: what it says it did |
 //! | [`error`] | [`LocalizeError`] |
-//! | `judge` | the hand-off by the sequential test between places that track themselves and the null (`LocalizerConfig::place_test`) |
+//! | `judge` | with `LocalizerConfig::place_test`: the hand-off by the sequential test between places that track themselves and the null, and *lost* when the tracked pose trails the null by the bound |
 //! | `monitor` | the fit monitor: do the readings still fit the EKF's pose? |
 //! | `verify` | the search's proposals and the hypothesis bank's places scored against the cluster on the last cycles' readings |
 
@@ -277,6 +277,7 @@ impl<const N: usize> Localizer<N> {
             dropped: self.dropped,
             weighed: Weighed::default(),
             lead: 0.0,
+            behind: 0.0,
             hypotheses: 0,
             calmed: false,
             fit: [0.0; 3],
@@ -338,16 +339,20 @@ impl<const N: usize> Localizer<N> {
                 let mut leader = None;
                 if let (Some(test), Some(judge)) = (&cfg.place_test, self.judge.as_mut()) {
                     let ekf = self.referencer.ekf.config();
+                    // The EKF beside the search after a wake-up is a place too.
+                    let awake = self.ekf_awake.then_some((&self.referencer.ekf, &self.offset));
                     let standing = judge.cycle(
                         test,
                         &self.sensed,
                         &offset,
+                        awake,
                         cluster.as_ref(),
                         &candidates,
                         &lookup,
                         &cfg.mcl.beam,
                         ekf,
                     )?;
+                    report.behind = judge.behind;
                     let living = judge.places.living();
                     report.hypotheses = living.len() as u8;
                     report.lead = judge.places.best_margin();
@@ -424,9 +429,14 @@ impl<const N: usize> Localizer<N> {
                                 && !self.referencer.ekf.is_lost()
                         });
                         // Or the EKF's readings fit it again, by the fit
-                        // monitor and by its own gate.
+                        // monitor and by its own gate. With the place test,
+                        // either only while the EKF is not behind the null
+                        // (a drifted EKF whose readings fit the gate again
+                        // for a few cycles is no place to go back to).
                         let fits = self.misfit == 0 && !self.referencer.ekf.is_lost();
-                        self.calm = if self.ekf_awake && (agrees || fits) { self.calm.saturating_add(1) } else { 0 };
+                        let level = self.judge.as_ref().is_none_or(|j| j.behind <= 0.0);
+                        let calms = self.ekf_awake && (agrees || fits) && level;
+                        self.calm = if calms { self.calm.saturating_add(1) } else { 0 };
                         if self.ekf_awake && self.calm >= cfg.calm_cycles {
                             self.mode = Mode::Tracking;
                             self.ekf_awake = false;
@@ -448,7 +458,8 @@ impl<const N: usize> Localizer<N> {
                 (report.verdicts, report.updates) = self.referencer.end_cycle();
                 self.calm = 0;
                 let misfit = self.monitor(&lookup, &mut report);
-                let lost = self.referencer.ekf.is_lost() || misfit;
+                let trails = self.trails(&lookup, &mut report);
+                let lost = self.referencer.ekf.is_lost() || misfit || trails;
                 if lost && N > 0 {
                     report.mode = Mode::Lost;
                     self.wake(&lookup)?;
@@ -471,6 +482,21 @@ impl<const N: usize> Localizer<N> {
         self.dropped = 0;
         self.offset = [0.0; 3];
         Ok(report)
+    }
+
+    /// With the place test, the tracked pose against the null: true when
+    /// its CUSUM reaches the bound (the report's `behind`). Out of line, so that its frame is not the cycle's end's on
+    /// every path (the EKF's recovery below that is the deepest).
+    #[inline(never)]
+    fn trails(&mut self, lookup: &FieldLookup<'_, '_>, report: &mut CycleReport) -> bool {
+        if N == 0 || lookup.field().is_empty() {
+            return false;
+        }
+        let (Some(test), Some(judge)) = (&self.cfg.place_test, self.judge.as_mut()) else { return false };
+        let tracked = (&self.referencer.ekf, &self.offset);
+        let trails = judge.track(test, &self.sensed, tracked, lookup, &self.cfg.mcl.beam);
+        report.behind = judge.behind;
+        trails
     }
 
     /// The EKF starts at `x` with covariance `p` (its variances at least
@@ -496,6 +522,7 @@ impl<const N: usize> Localizer<N> {
         self.bank.clear();
         if let Some(j) = self.judge.as_mut() {
             j.clear();
+            j.behind = 0.0;
         }
         self.counts.handoffs = self.counts.handoffs.saturating_add(1);
         Ok(())

@@ -38,15 +38,21 @@ impl<const N: usize> Localizer<N> {
         self.fit_seen = self.fit_seen.saturating_add(1);
         self.misfit = if bad { self.misfit.saturating_add(1) } else { 0 };
         report.fit = [fit, fast, slow];
-        self.fit_seen > u16::from(c.fit_cycles) * 4 && self.misfit >= c.fit_cycles
+        // `fit_cycles` 0 is off (it said so, yet fired on every cycle).
+        c.fit_cycles > 0 && self.fit_seen > u16::from(c.fit_cycles) * 4 && self.misfit >= c.fit_cycles
     }
 
     /// The EKF's estimate carried back to the cycle's start (where the
     /// particles stand and the readings are expressed): now ⊕ offset⁻¹.
     pub(super) fn ekf_at_cycle_start(&self) -> [f32; 3] {
-        let now = self.referencer.ekf.state();
-        let (s, co) = sin_cos(self.offset[2]);
-        let (ox, oy) = (-(co * self.offset[0] + s * self.offset[1]), s * self.offset[0] - co * self.offset[1]);
-        compose(&now, &[ox, oy, -self.offset[2]])
+        back_to_start(&self.referencer.ekf.state(), &self.offset)
     }
+}
+
+/// `now` carried back by the odometry `offset` since the cycle's start:
+/// now ⊕ offset⁻¹.
+pub(super) fn back_to_start(now: &[f32; 3], offset: &[f32; 3]) -> [f32; 3] {
+    let (s, co) = sin_cos(offset[2]);
+    let (ox, oy) = (-(co * offset[0] + s * offset[1]), s * offset[0] - co * offset[1]);
+    compose(now, &[ox, oy, -offset[2]])
 }

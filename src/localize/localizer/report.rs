@@ -54,6 +54,10 @@ pub struct CycleReport {
     /// place's smallest lead over the null and every other place, which
     /// the hand-off waits to reach the bound.
     pub lead: f32,
+    /// With the place test: how far the EKF's pose (tracking, or beside
+    /// the search after a wake-up) trails the null, nats: the CUSUM of the
+    /// null's lead over it, *lost* at the test's bound; 0 otherwise.
+    pub behind: f32,
     /// The places the search weighs (while searching): the heaviest
     /// cluster and the hypothesis bank's places away from it, or with the
     /// place test its living places. More than one alive and level, the
