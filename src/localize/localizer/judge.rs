@@ -110,10 +110,10 @@ impl Judge {
     /// One ring cycle (`sensed` relative to the cycle's start, `offset`
     /// its odometry): `awake` (the EKF and the odometry since the cycle's
     /// start, while it runs beside the search after a wake-up: its pose at
-    /// the cycle's start with its covariance), the
-    /// cluster (at the cycle's start) and the sweep's best `candidates`
-    /// proposed, then every place corrected, scored,
-    /// merged or dropped and carried to the next cycle's start. The
+    /// the cycle's start with its covariance), the cluster (at the cycle's
+    /// start) and the sweep's best `candidates` proposed, then every place
+    /// corrected, scored, merged or dropped and carried to the next
+    /// cycle's start. The
     /// proposals' σ are refused silently when not finite (nothing is
     /// proposed); a place the odometry carries out of range is dropped.
     /// Kept out of line: its frame is the searching cycle's alone.

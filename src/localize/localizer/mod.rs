@@ -485,8 +485,9 @@ impl<const N: usize> Localizer<N> {
     }
 
     /// With the place test, the tracked pose against the null: true when
-    /// its CUSUM reaches the bound (the report's `behind`). Out of line, so that its frame is not the cycle's end's on
-    /// every path (the EKF's recovery below that is the deepest).
+    /// its CUSUM reaches the bound (the report's `behind`). Out of line,
+    /// so that its frame is not the cycle's end's on every path (the EKF's
+    /// recovery below that is the deepest).
     #[inline(never)]
     fn trails(&mut self, lookup: &FieldLookup<'_, '_>, report: &mut CycleReport) -> bool {
         if N == 0 || lookup.field().is_empty() {
