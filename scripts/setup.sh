@@ -16,13 +16,21 @@ done
 # overflow faults instead of corrupting them; scripts/thumb-link.sh, issue #30).
 command -v flip-link >/dev/null 2>&1 || cargo install --locked -q flip-link
 source "$(dirname "$0")/apt-get-wait.sh"
+# `ip` (iproute2) and `unshare` (util-linux) put the `link --ros2` tests in a network
+# namespace of their own, with only the loopback up.
+if ! command -v ip >/dev/null 2>&1; then
+  apt_get update -qq
+  apt_get install -y -qq iproute2 >/dev/null
+fi
 if ! command -v qemu-system-arm >/dev/null 2>&1; then
   apt_get update -qq
   apt_get install -y -qq qemu-system-arm >/dev/null
 fi
 # The independent writer and reader of ROS 2 bags and MCAP recordings the lab's
 # tests run (scripts/fixture-bag.py, scripts/mcap-check.py, scripts/live-viewer.py):
-# PyPI's rosbags, mcap with its protobuf decoder, and websockets, installed when absent.
-if ! python3 -c "import rosbags, mcap, mcap_protobuf, websockets" >/dev/null 2>&1; then
-  python3 -m pip install -q --disable-pip-version-check rosbags mcap mcap-protobuf-support websockets
+# PyPI's rosbags, mcap with its protobuf decoder, websockets, and Cyclone DDS (the
+# independent ROS 2 node of the `link --ros2` tests; its wheel bundles the C library),
+# installed when absent.
+if ! python3 -c "import rosbags, mcap, mcap_protobuf, websockets, cyclonedds" >/dev/null 2>&1; then
+  python3 -m pip install -q --disable-pip-version-check rosbags mcap mcap-protobuf-support websockets cyclonedds==11.0.1
 fi

@@ -80,6 +80,8 @@ pub mod predict;
 #[cfg(feature = "tool")]
 pub mod replay;
 pub mod ring;
+#[cfg(feature = "tool")]
+pub mod ros2;
 pub mod run_input;
 #[cfg(feature = "tool")]
 pub mod scenario;

@@ -56,10 +56,29 @@ pub struct LinkArgs {
     /// Give up after this many seconds.
     #[arg(long = "timeout-s", default_value_t = 120)]
     timeout_s: u64,
+    #[command(flatten)]
+    ros2: crate::ros2::Ros2Args,
 }
 
 /// Odometry samples as the link sends them: (time µs, x m, y m, θ rad).
-type Sample = (u32, f32, f32, f32);
+type Sample = crate::ros2::bridge::Sample;
+
+/// How far ahead of the controller's last reading the odometry runs when
+/// commands can come mid-run (`--ros2`), µs: enough that the controller
+/// never waits for a sample, little enough that a command sent now is
+/// taken within a few ring cycles (the socket would hold the whole run).
+const PACED_LEAD_US: u32 = 2_000_000;
+
+/// Commands to send between odometry frames, and the controller's progress
+/// that paces the odometry so that they come in time.
+struct Commands {
+    rx: std::sync::mpsc::Receiver<ToController>,
+    /// The last reading's time on the controller's clock, µs, once one came.
+    progress: std::sync::Arc<std::sync::Mutex<Option<u32>>>,
+    /// Set when the reader is done.
+    done: std::sync::Arc<std::sync::atomic::AtomicBool>,
+    sent: u32,
+}
 
 /// Cumulative odometry from a scenario's increments, composed in `f64`
 /// from the origin, stamped with each firing's time relative to the first
@@ -143,14 +162,40 @@ struct Sent {
     odometry: u32,
     corrupted: u32,
     garbage: u32,
+    /// Commands from ROS 2 (`SetPose`, `Search`).
+    commands: u32,
 }
 
 /// Sends every sample, then `End`; stops at the first write error (a
 /// controller that closed the line), returning what went out.
-fn send_all(w: UnixStream, samples: Vec<Sample>, corrupt_every: Option<u32>) -> Sent {
+fn send_all(w: UnixStream, samples: Vec<Sample>, corrupt_every: Option<u32>, commands: Option<Commands>) -> Sent {
     let mut sent = Sent::default();
-    let _ = send_frames(w, samples, corrupt_every, &mut sent);
+    let mut commands = commands;
+    let _ = send_frames(w, samples, corrupt_every, &mut sent, commands.as_mut());
+    sent.commands = commands.map_or(0, |c| c.sent);
     sent
+}
+
+/// With commands: waits until `time_us` is within [`PACED_LEAD_US`] of the
+/// controller's last reading (of the first sample, before any reading),
+/// sending the commands that come meanwhile. `false` once the reader is done.
+fn pace(w: &mut UnixStream, c: &mut Commands, time_us: u32, first: u32, buf: &mut [u8]) -> std::io::Result<bool> {
+    loop {
+        while let Ok(cmd) = c.rx.try_recv() {
+            let n = encode::<_, 64>(&cmd, buf).map_err(|e| std::io::Error::other(format!("{e:?}")))?;
+            w.write_all(&buf[..n])?;
+            c.sent += 1;
+        }
+        if c.done.load(std::sync::atomic::Ordering::Relaxed) {
+            return Ok(false);
+        }
+        let last = c.progress.lock().unwrap_or_else(|p| p.into_inner()).unwrap_or(first);
+        // Wrapping: the controller's clock wraps at 2³² µs.
+        if (time_us.wrapping_sub(last) as i32) <= PACED_LEAD_US as i32 {
+            return Ok(true);
+        }
+        std::thread::sleep(Duration::from_millis(2));
+    }
 }
 
 fn send_frames(
@@ -158,10 +203,17 @@ fn send_frames(
     samples: Vec<Sample>,
     corrupt_every: Option<u32>,
     sent: &mut Sent,
+    mut commands: Option<&mut Commands>,
 ) -> std::io::Result<()> {
     let mut buf = [0u8; max_frame_len(64)];
     let n_samples = samples.len();
+    let first = samples.first().map(|s| s.0);
     for (k, (time_us, x, y, theta)) in samples.into_iter().enumerate() {
+        if let Some(c) = commands.as_deref_mut() {
+            if !pace(&mut w, c, time_us, first.unwrap_or(time_us), &mut buf)? {
+                return Ok(());
+            }
+        }
         let n = encode::<_, 64>(&ToController::Odometry { time_us, x, y, theta }, &mut buf)
             .map_err(|e| std::io::Error::other(format!("{e:?}")))?;
         let frame = &mut buf[..n];
@@ -241,12 +293,32 @@ pub fn link_cmd(a: &LinkArgs) -> Result<String, LabError> {
         }
     }
     let mut recorder = crate::foxglove::controller::LinkRecorder::new(&mounts);
+    let (mut ros, commands) = if a.ros2.ros2 {
+        let (tx, rx) = std::sync::mpsc::channel();
+        let node = crate::ros2::node::Ros2Node::start(&a.ros2, &mounts, &samples, tx)?;
+        let wait = Duration::from_secs_f64(a.ros2.ros2_wait_s.clamp(0.0, 3600.0));
+        if !wait.is_zero() && !node.wait_for_subscribers(wait) {
+            eprintln!("ros2: not every topic had a subscriber within --ros2-wait-s; running without");
+        }
+        let c = Commands { rx, progress: Default::default(), done: Default::default(), sent: 0 };
+        (Some(node), Some(c))
+    } else {
+        (None, None)
+    };
+    let progress = commands.as_ref().map(|c| (c.progress.clone(), c.done.clone()));
     let mut on_message = |m: &FromController| {
         if let Some(r) = rec.as_mut() {
             recorder.push(r, m);
         }
+        if let Some(n) = ros.as_mut() {
+            n.push(m);
+        }
+        if let (Some((p, _)), FromController::Reading(r)) = (&progress, m) {
+            *p.lock().unwrap_or_else(|p| p.into_inner()) = Some(r.time_us);
+        }
     };
-    let result = talk(&sock_path, &mut qemu, deadline, samples, a.corrupt_every, &mut on_message);
+    let result = talk(&sock_path, &mut qemu, deadline, samples, a.corrupt_every, commands, &mut on_message);
+    let ros2 = ros.take().map(|n| n.finish());
     let firmware_exit = qemu.as_mut().map(|q| wait_or_kill(q, deadline));
     if a.qemu.is_some() {
         let _ = std::fs::remove_file(&sock_path);
@@ -261,6 +333,7 @@ pub fn link_cmd(a: &LinkArgs) -> Result<String, LabError> {
     }
     let summary = json!({"host": {
         "odometry_sent": sent.odometry, "corrupted": sent.corrupted, "garbage": sent.garbage,
+        "commands_sent": sent.commands, "ros2": ros2,
         "messages_received": received, "frames_dropped": dropped,
         "firmware_exit": firmware_exit.flatten(),
         "firmware_console": console.iter().filter(|l| l.starts_with("link:") || l.starts_with("pose error") || l.starts_with("FAIL")).collect::<Vec<_>>(),
@@ -289,11 +362,13 @@ fn talk(
     deadline: Instant,
     samples: Vec<Sample>,
     corrupt_every: Option<u32>,
+    commands: Option<Commands>,
     on_message: &mut dyn FnMut(&FromController),
 ) -> Result<(Sent, u32, u32), LabError> {
     let stream = connect(sock, qemu, deadline)?;
     let writer = stream.try_clone().map_err(|e| LabError(format!("socket: {e}")))?;
-    let sender = std::thread::spawn(move || send_all(writer, samples, corrupt_every));
+    let done = commands.as_ref().map(|c| c.done.clone());
+    let sender = std::thread::spawn(move || send_all(writer, samples, corrupt_every, commands));
     let mut reader = stream;
     reader.set_read_timeout(Some(Duration::from_millis(200))).map_err(|e| LabError(format!("socket: {e}")))?;
     let mut rx = Decoder::<256>::new();
@@ -329,7 +404,11 @@ fn talk(
             }
         }
     }
-    // The writer may still be blocked on a controller that stopped reading.
+    // The writer may still be blocked on a controller that stopped reading,
+    // or pacing itself on one that is done.
+    if let Some(d) = &done {
+        d.store(true, std::sync::atomic::Ordering::Relaxed);
+    }
     let _ = reader.shutdown(std::net::Shutdown::Both);
     let sent = sender.join().map_err(|_| LabError("the sender panicked".into()))?;
     Ok((sent, received, rx.counts().dropped()))

@@ -283,3 +283,242 @@ fn link_live_viewers_see_what_the_recording_holds() {
     assert_eq!(leaving["left_early"], true);
     assert_eq!(leaving["messages"], 100);
 }
+
+/// Runs `link --ros2 --ros2-localhost` on the QEMU board beside Cyclone DDS
+/// peers (`scripts/ros2-peer.py`, each with its arguments), all inside a
+/// network namespace of their own (`unshare -n`: only the loopback exists,
+/// so nothing can leave the machine). Returns the link's output, its stderr,
+/// and each peer's JSON summary.
+fn link_beside_ros2_peers(
+    elf: &std::path::Path,
+    link_args: &[&str],
+    peers: &[&[&str]],
+) -> (std::process::Output, Vec<serde_json::Value>) {
+    let scn = root().join("boards/qemu-mps2-an386/depot.scn");
+    let dir = std::env::temp_dir().join(format!("echoloc-ros2-{}-{}", std::process::id(), link_args.len()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let q = |s: &str| format!("'{}'", s.replace('\'', r"'\''"));
+    let mut script = String::from("set -e\nip link set lo up\n");
+    for (i, p) in peers.iter().enumerate() {
+        let args: Vec<String> = p.iter().map(|a| q(a)).collect();
+        script += &format!(
+            "python3 {} {} > {}/peer{i}.json 2> {}/peer{i}.err &\n",
+            q(root().join("scripts/ros2-peer.py").to_str().unwrap()),
+            args.join(" "),
+            dir.display(),
+            dir.display()
+        );
+    }
+    let largs: Vec<String> = link_args.iter().map(|a| q(a)).collect();
+    script += &format!(
+        "{} link --timeout-s 300 --qemu {} --scenario {} --ros2 --ros2-localhost --ros2-service-mapping cyclone --ros2-wait-s 60 {}\n",
+        q(env!("CARGO_BIN_EXE_echoloc-lab")),
+        q(elf.to_str().unwrap()),
+        q(scn.to_str().unwrap()),
+        largs.join(" ")
+    );
+    script += "wait\n";
+    let o = std::process::Command::new("unshare").args(["-n", "bash", "-c", &script]).output().unwrap();
+    assert!(
+        o.status.success(),
+        "link --ros2 or a peer failed: {}\n{}",
+        String::from_utf8_lossy(&o.stderr),
+        (0..peers.len())
+            .map(|i| std::fs::read_to_string(dir.join(format!("peer{i}.err"))).unwrap_or_default())
+            .collect::<Vec<_>>()
+            .join("\n")
+    );
+    let summaries = (0..peers.len())
+        .map(|i| {
+            let text = std::fs::read_to_string(dir.join(format!("peer{i}.json"))).unwrap();
+            serde_json::from_str(&text).unwrap_or_else(|e| panic!("peer {i}: {e}: {text}"))
+        })
+        .collect();
+    (o, summaries)
+}
+
+fn f64s(v: &serde_json::Value) -> Vec<f64> {
+    v.as_array().unwrap().iter().map(|x| x.as_f64().unwrap()).collect()
+}
+
+/// `link --ros2` (#50): an independent ROS 2 node (Cyclone DDS, Python)
+/// beside the QEMU board. `/amcl_pose` carries, in count and value, the
+/// poses the link recorded (its MCAP, read back by PyPI's `mcap`, and its
+/// lines); `map → odom` on `/tf` composed with the odometry (composed here
+/// from the scenario's increments) is that pose; `/tf_static` has the 16
+/// mounts; each transducer's Range count is the link's readings with a range
+/// or no echo; `/diagnostics` one per ring cycle. An `/initialpose` 2 m off
+/// with σ 2.5 m makes the controller search around it, then track near the
+/// truth; two malformed ones (NaN, frame `odom`) are refused and nothing is
+/// sent. A peer that leaves after 300 poses and one that joins 3 s late
+/// change nothing: the link still sent every pose, and the late one gets
+/// the mounts and the last pose (transient local).
+/// (The late one joins when the first has seen 1 300 poses: it marks a file.)
+#[test]
+fn link_ros2_serves_an_independent_node_as_amcl_would() {
+    let elf = build_firmware();
+    let dir = std::env::temp_dir().join(format!("echoloc-ros2-main-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let (mcap, lines, mark) = (dir.join("ros2.mcap"), dir.join("ros2.jsonl"), dir.join("half-way"));
+    let _ = std::fs::remove_file(&mark);
+    let mark = mark.to_str().unwrap();
+    let (o, peers) = link_beside_ros2_peers(
+        &elf,
+        &["--mcap", mcap.to_str().unwrap()],
+        &[
+            &[
+                "--initial-after",
+                "400",
+                "--offset-m",
+                "2",
+                "--sigma-m",
+                "2.5",
+                "--bad-initial-after",
+                "150",
+                "--mark",
+                "1300",
+                mark,
+            ],
+            &["--leave-after", "300"],
+            &["--join-when", mark],
+        ],
+    );
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    let (rec, readings) = check_link_recording(&mcap, &lines, &o.stdout);
+    let printed: Vec<serde_json::Value> =
+        String::from_utf8_lossy(&o.stdout).lines().map(|l| serde_json::from_str(l).unwrap()).collect();
+    let link: Vec<&serde_json::Value> = printed.iter().filter_map(|v| v.get("Reading")).collect();
+    let host = &printed.last().unwrap()["host"];
+    let whole = &peers[0];
+    let poses = whole["poses"].as_array().unwrap();
+    assert_eq!(poses.len(), readings, "one /amcl_pose per reading");
+    assert_eq!(rec["channels"]["/pose/controller"]["count"], readings);
+    assert_eq!(host["ros2"]["poses"], readings);
+    for (p, r) in poses.iter().zip(&link) {
+        assert_eq!(p["frame"], "map");
+        // f32 on the link (printed shortest), f64 on ROS: the same f32 for
+        // x and y; yaw through a quaternion.
+        let (a, b) = (f64s(&p["pose"]), f64s(&r["pose"]));
+        assert!(a[0] as f32 == b[0] as f32 && a[1] as f32 == b[1] as f32 && (a[2] - b[2]).abs() < 1e-6, "{p} {r}");
+        let (c, d) = (f64s(&p["cov"]), f64s(&r["covariance"]));
+        // ROS's (0, 1, 5, 7, 11, 35) are the link's xx, xy, xφ, yy, yφ, φφ.
+        assert!(c.iter().zip(&d).all(|(x, y)| *x as f32 == *y as f32), "{c:?} {d:?}");
+    }
+    let first = f64s(&poses[0]["pose"]);
+    let final_pose = f64s(&poses[poses.len() - 1]["pose"]);
+    let from_mcap = f64s(&rec["ekf"]["final_pose"]);
+    assert!((final_pose[0] - from_mcap[0]).abs() < 1e-4 && (final_pose[1] - from_mcap[1]).abs() < 1e-4);
+    assert!((first[0] - f64s(&rec["ekf"]["first_pose"])[0]).abs() < 1e-4);
+    // Stamps: the controller's clock on the host's, so their steps are the readings'.
+    for w in poses.windows(2).zip(link.windows(2)) {
+        let dt = w.0[1]["stamp_ns"].as_i64().unwrap() - w.0[0]["stamp_ns"].as_i64().unwrap();
+        let du = w.1[1]["time_us"].as_i64().unwrap() - w.1[0]["time_us"].as_i64().unwrap();
+        assert_eq!(dt, du * 1000);
+    }
+
+    // map → odom ∘ odometry = the pose, the odometry composed here from the scenario.
+    let bytes = std::fs::read(root().join("boards/qemu-mps2-an386/depot.scn")).unwrap();
+    let s = Scenario::parse(&bytes).unwrap();
+    let t0 = s.records().next().unwrap().time_us;
+    let mut x = [0.0f64; 3];
+    let odo: Vec<(i64, [f64; 3])> = s
+        .records()
+        .map(|r| {
+            let u = r.odometry.map(f64::from);
+            let (sn, cs) = x[2].sin_cos();
+            x = [x[0] + cs * u[0] - sn * u[1], x[1] + sn * u[0] + cs * u[1], x[2] + u[2]];
+            (i64::from(r.time_us.wrapping_sub(t0)), x)
+        })
+        .collect();
+    let tfs = whole["tf"].as_array().unwrap();
+    assert_eq!(tfs.len(), readings, "one map → odom per reading");
+    let wrap = |a: f64| (a + std::f64::consts::PI).rem_euclid(2.0 * std::f64::consts::PI) - std::f64::consts::PI;
+    for ((t, r), p) in tfs.iter().zip(&link).zip(poses) {
+        assert_eq!((t["parent"].as_str(), t["child"].as_str()), (Some("map"), Some("odom")));
+        let tu = r["time_us"].as_i64().unwrap();
+        let o = odo.iter().find(|(t, _)| *t == tu).map(|(_, o)| *o).unwrap_or_else(|| panic!("no record at {tu}"));
+        let m = f64s(&t["pose"]);
+        let (sn, cs) = m[2].sin_cos();
+        let composed = [m[0] + cs * o[0] - sn * o[1], m[1] + sn * o[0] + cs * o[1], m[2] + o[2]];
+        let pose = f64s(&p["pose"]);
+        // The link's odometry is f32: a few µm over tens of metres.
+        assert!((composed[0] - pose[0]).abs() < 1e-3 && (composed[1] - pose[1]).abs() < 1e-3, "{composed:?} {pose:?}");
+        assert!(wrap(composed[2] - pose[2]).abs() < 1e-4);
+    }
+    assert_eq!(whole["tf_static"].as_array().unwrap().len(), 16);
+    // Range: one per reading with a range or no echo, per transducer.
+    let mut expect = [0u64; 16];
+    for r in &link {
+        if r["outcome"].get("Range").is_some() || r["outcome"] == "NoEcho" {
+            expect[r["transducer"].as_u64().unwrap() as usize] += 1;
+        }
+    }
+    let got: Vec<u64> = whole["ranges"].as_array().unwrap().iter().map(|v| v.as_u64().unwrap()).collect();
+    assert_eq!(got, expect.to_vec());
+    assert!(expect.iter().sum::<u64>() > 100);
+    let cycles: Vec<&serde_json::Value> = printed.iter().filter_map(|v| v.get("Cycle")).collect();
+    let diags = whole["diagnostics"].as_array().unwrap();
+    assert_eq!(diags.len(), cycles.len());
+    for (d, c) in diags.iter().zip(&cycles) {
+        let level = match c["mode"].as_str().unwrap() {
+            "Tracking" => 0,
+            "Searching" => 1,
+            _ => 2,
+        };
+        assert_eq!(d["level"], level, "{d} {c}");
+    }
+
+    // The malformed /initialposes refused, the good one taken: one command sent.
+    assert_eq!(host["ros2"]["initial_poses_refused"], 2, "{stderr}");
+    assert_eq!(host["ros2"]["initial_poses"], 1);
+    assert_eq!(host["commands_sent"], 1);
+    assert!(stderr.contains("/initialpose refused: a number that is not finite"), "{stderr}");
+    assert!(stderr.contains("/initialpose refused: frame \"odom\""), "{stderr}");
+    // Searching around it after it was sent, then tracking near the truth at the end.
+    let sent_at = whole["sent"]["initial"]["at_pose"].as_u64().unwrap() as usize;
+    let truth: Vec<[f32; 3]> = s.records().map(|r| r.truth).collect();
+    let searched = link[sent_at..].iter().position(|r| r["mode"] == "Searching").expect("a search after /initialpose");
+    assert!(searched < 200, "the search began {searched} readings after /initialpose was sent");
+    let end = link.len() - 1;
+    let e = f64s(&link[end]["pose"]);
+    let err = ((e[0] - f64::from(truth[end][0])).powi(2) + (e[1] - f64::from(truth[end][1])).powi(2)).sqrt();
+    assert_eq!(link[end]["mode"], "Tracking");
+    assert!(err < 0.3, "ends {err} m from the truth");
+    eprintln!(
+        "ros2: {} poses, search {} readings after /initialpose, ends {err:.3} m off; leaving peer {}, late {}",
+        poses.len(),
+        searched,
+        peers[1]["poses"].as_array().unwrap().len(),
+        peers[2]["poses"].as_array().unwrap().len()
+    );
+
+    // The peer that left and the one that came late.
+    assert_eq!(peers[1]["left_early"], true);
+    assert!(peers[1]["poses"].as_array().unwrap().len() >= 300);
+    let late = peers[2]["poses"].as_array().unwrap();
+    assert!(!late.is_empty() && late.len() < readings, "late: {}", late.len());
+    assert_eq!(peers[2]["tf_static"].as_array().unwrap().len(), 16, "the mounts are latched");
+    assert_eq!(late.last().unwrap()["pose"], poses.last().unwrap()["pose"]);
+}
+
+/// `link --ros2 --ros-distro humble` (#50): Humble's Range (no `variance`)
+/// decodes at the peer as Humble's type, and the global localization
+/// service (rmw_cyclonedds' mapping) answers and starts a search.
+#[test]
+fn link_ros2_humble_ranges_and_the_global_localization_service() {
+    let elf = build_firmware();
+    let (o, peers) =
+        link_beside_ros2_peers(&elf, &["--ros-distro", "humble"], &[&["--distro", "humble", "--global-after", "300"]]);
+    let printed: Vec<serde_json::Value> =
+        String::from_utf8_lossy(&o.stdout).lines().map(|l| serde_json::from_str(l).unwrap()).collect();
+    let link: Vec<&serde_json::Value> = printed.iter().filter_map(|v| v.get("Reading")).collect();
+    let host = &printed.last().unwrap()["host"];
+    let ranges: u64 = peers[0]["ranges"].as_array().unwrap().iter().map(|v| v.as_u64().unwrap()).sum();
+    assert_eq!(ranges, host["ros2"]["ranges"].as_u64().unwrap());
+    assert!(ranges > 100);
+    assert_eq!(peers[0]["service_replies"], 1, "{}", peers[0]);
+    assert_eq!(host["ros2"]["global_localizations"], 1);
+    assert_eq!(host["commands_sent"], 1);
+    let at = peers[0]["sent"]["global"]["at_pose"].as_u64().unwrap() as usize;
+    assert!(link[at..].iter().any(|r| r["mode"] == "Searching"), "no search after the service call");
+}

@@ -243,7 +243,7 @@ pub fn start<const P: usize>(
 /// Replays every record of the bench's scenario: the driver fires and times
 /// each ping, `odometry` gives the motion up to it, the controller judges it
 /// and updates the filter, and `each` sees every step (for a link, a log or
-/// a cost counter). Call [`check`] first, and [`start`] the localizer.
+/// a cost counter) and may restart the controller (a link's `SetPose`). Call [`check`] first, and [`start`] the localizer.
 #[allow(clippy::too_many_arguments)]
 pub fn run<M, K, const A: usize, const N: usize, const P: usize>(
     bench: &Bench<'_>,
@@ -254,7 +254,7 @@ pub fn run<M, K, const A: usize, const N: usize, const P: usize>(
     setup: &ReplaySetup<N>,
     localizer: &mut Localizer<P>,
     mut odometry: impl FnMut(&RingReading, &Record) -> Result<Motion, ReplayError>,
-    mut each: impl FnMut(&Controller<'_, M, K, P>, &RingReading, &Record, &Step),
+    mut each: impl FnMut(&mut Controller<'_, M, K, P>, &RingReading, &Record, &Step),
 ) -> Result<ReplaySummary, ReplayError>
 where
     M: MapSource + ?Sized,
@@ -302,7 +302,7 @@ where
             _ => {}
         }
         score.add(controller.state(), record.truth);
-        each(&controller, &reading, &record, &step);
+        each(&mut controller, &reading, &record, &step);
     }
     controller.finish()?;
     let ekf = &controller.referencer().ekf;

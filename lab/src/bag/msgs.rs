@@ -1,5 +1,6 @@
 //! The ROS 2 messages a sonar or lidar bag carries, as far as echoloc reads them,
-//! decoded from CDR (the `cdr` message encoding of rosbag2) by the
+//! and those it writes (into bags, and as a ROS 2 node: `crate::ros2`),
+//! decoded from and encoded to CDR (the `cdr` message encoding of rosbag2) by the
 //! `cdr-encoding` crate over serde.
 //!
 //! Each type is the message's leading fields in their `.msg` order (CDR has
@@ -12,6 +13,8 @@
 //! `Transform`, `TfMessage`, …) also serialize: [`super::write`] encodes
 //! them, inside the Range and Odometry it completes itself.
 
+use echoloc::predict::Mount;
+use serde::ser::SerializeTuple;
 use serde::{Deserialize, Serialize};
 
 /// The rosbag2 type names echoloc reads.
@@ -187,6 +190,138 @@ pub struct TransformStamped {
 #[derive(Clone, Debug, Deserialize, Serialize, PartialEq)]
 pub struct TfMessage {
     pub transforms: Vec<TransformStamped>,
+}
+
+/// `geometry_msgs/msg/PoseWithCovariance`'s covariance: a CDR fixed array
+/// (no length), which serde's arrays stop short of (32 elements).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Covariance(pub [f64; 36]);
+
+impl Serialize for Covariance {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        let mut t = s.serialize_tuple(36)?;
+        for v in &self.0 {
+            t.serialize_element(v)?;
+        }
+        t.end()
+    }
+}
+
+impl<'de> Deserialize<'de> for Covariance {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct Elements;
+        impl<'de> serde::de::Visitor<'de> for Elements {
+            type Value = Covariance;
+            fn expecting(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+                f.write_str("36 f64s")
+            }
+            fn visit_seq<A: serde::de::SeqAccess<'de>>(self, mut seq: A) -> Result<Covariance, A::Error> {
+                let mut c = [0.0; 36];
+                for (i, v) in c.iter_mut().enumerate() {
+                    *v = seq.next_element()?.ok_or_else(|| serde::de::Error::invalid_length(i, &self))?;
+                }
+                Ok(Covariance(c))
+            }
+        }
+        d.deserialize_tuple(36, Elements)
+    }
+}
+
+/// `sensor_msgs/msg/Range`, Jazzy's (with `variance`).
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct RangeMsg {
+    pub header: Header,
+    pub radiation_type: u8,
+    pub field_of_view: f32,
+    pub min_range: f32,
+    pub max_range: f32,
+    pub range: f32,
+    pub variance: f32,
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct PoseWithCovariance {
+    pub pose: Pose,
+    pub covariance: Covariance,
+}
+
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct Twist {
+    pub linear: Vector3,
+    pub angular: Vector3,
+}
+
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct TwistWithCovariance {
+    pub twist: Twist,
+    pub covariance: Covariance,
+}
+
+/// `nav_msgs/msg/Odometry`, whole.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct OdometryMsg {
+    pub header: Header,
+    pub child_frame_id: String,
+    pub pose: PoseWithCovariance,
+    pub twist: TwistWithCovariance,
+}
+
+/// `sensor_msgs/msg/Range`'s ULTRASOUND.
+pub const ULTRASOUND: u8 = 0;
+
+pub fn stamp(ns: u64) -> Time {
+    // ns < 2³¹·10⁹ was checked, so both parts fit.
+    Time { sec: (ns / 1_000_000_000) as i32, nanosec: (ns % 1_000_000_000) as u32 }
+}
+
+pub fn header(ns: u64, frame: &str) -> Header {
+    Header { stamp: stamp(ns), frame_id: frame.into() }
+}
+
+/// A heading as a rotation about z.
+pub fn yaw_quaternion(yaw: f64) -> Quaternion {
+    let h = yaw / 2.0;
+    Quaternion { x: 0.0, y: 0.0, z: h.sin(), w: h.cos() }
+}
+
+pub fn pose(p: [f64; 3]) -> Pose {
+    Pose { position: Point { x: p[0], y: p[1], z: 0.0 }, orientation: yaw_quaternion(p[2]) }
+}
+
+/// An Odometry of `child` in `frame` at `ns`: the pose, its covariance
+/// and the twist unknown (zero; a log has neither).
+pub fn odometry(ns: u64, frame: &str, child: &str, p: [f64; 3]) -> OdometryMsg {
+    let zero = Vector3 { x: 0.0, y: 0.0, z: 0.0 };
+    OdometryMsg {
+        header: header(ns, frame),
+        child_frame_id: child.into(),
+        pose: PoseWithCovariance { pose: pose(p), covariance: Covariance([0.0; 36]) },
+        twist: TwistWithCovariance { twist: Twist { linear: zero, angular: zero }, covariance: Covariance([0.0; 36]) },
+    }
+}
+
+pub fn transform(ns: u64, parent: &str, child: &str, p: [f64; 3]) -> TransformStamped {
+    TransformStamped {
+        header: header(ns, parent),
+        child_frame_id: child.into(),
+        transform: Transform { translation: Vector3 { x: p[0], y: p[1], z: 0.0 }, rotation: yaw_quaternion(p[2]) },
+    }
+}
+
+/// A mount as a pose in the robot's frame (m, m, rad).
+pub fn mount_pose(m: &Mount) -> [f64; 3] {
+    [f64::from(m.x_mm) / 1000.0, f64::from(m.y_mm) / 1000.0, (f64::from(m.heading_mdeg) / 1000.0).to_radians()]
+}
+
+/// A message as rosbag2 stores it and DDS carries it: the CDR encapsulation
+/// header (`00 01`: plain CDR, little-endian; options 0), then the body,
+/// aligned from its start.
+pub fn encode<T: Serialize>(msg: &T) -> Result<Vec<u8>, String> {
+    let body = cdr_encoding::to_vec::<T, byteorder::LittleEndian>(msg).map_err(|e| e.to_string())?;
+    let mut out = Vec::with_capacity(4 + body.len());
+    out.extend_from_slice(&[0, 1, 0, 0]);
+    out.extend_from_slice(&body);
+    Ok(out)
 }
 
 /// Decodes a rosbag2 `cdr` message: the 4-byte encapsulation header

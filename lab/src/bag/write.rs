@@ -29,10 +29,9 @@ use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 
 use echoloc::predict::Mount;
-use serde::ser::SerializeTuple;
 use serde::Serialize;
 
-use super::msgs::{types, Header, Point, Pose, Quaternion, TfMessage, Time, Transform, TransformStamped, Vector3};
+use super::msgs::{self, header, mount_pose, odometry, transform, types, RangeMsg, TfMessage, ULTRASOUND};
 use crate::log::{Row, MAX_RANGE_MM};
 
 /// The robot's frame.
@@ -303,116 +302,9 @@ fn offered_qos(transient_local: bool) -> String {
     )
 }
 
-/// `geometry_msgs/msg/PoseWithCovariance`'s covariance: a CDR fixed array
-/// (no length), which serde's arrays stop short of (32 elements).
-#[derive(Clone, Copy, Debug, PartialEq)]
-struct Covariance([f64; 36]);
-
-impl Serialize for Covariance {
-    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
-        let mut t = s.serialize_tuple(36)?;
-        for v in &self.0 {
-            t.serialize_element(v)?;
-        }
-        t.end()
-    }
-}
-
-/// `sensor_msgs/msg/Range`, Jazzy's (with `variance`).
-#[derive(Serialize)]
-struct RangeMsg {
-    header: Header,
-    radiation_type: u8,
-    field_of_view: f32,
-    min_range: f32,
-    max_range: f32,
-    range: f32,
-    variance: f32,
-}
-
-#[derive(Serialize)]
-struct PoseWithCovariance {
-    pose: Pose,
-    covariance: Covariance,
-}
-
-#[derive(Serialize)]
-struct Twist {
-    linear: Vector3,
-    angular: Vector3,
-}
-
-#[derive(Serialize)]
-struct TwistWithCovariance {
-    twist: Twist,
-    covariance: Covariance,
-}
-
-/// `nav_msgs/msg/Odometry`, whole.
-#[derive(Serialize)]
-struct OdometryMsg {
-    header: Header,
-    child_frame_id: String,
-    pose: PoseWithCovariance,
-    twist: TwistWithCovariance,
-}
-
-/// `sensor_msgs/msg/Range`'s ULTRASOUND.
-const ULTRASOUND: u8 = 0;
-
-fn stamp(ns: u64) -> Time {
-    // ns < 2³¹·10⁹ was checked, so both parts fit.
-    Time { sec: (ns / 1_000_000_000) as i32, nanosec: (ns % 1_000_000_000) as u32 }
-}
-
-fn header(ns: u64, frame: &str) -> Header {
-    Header { stamp: stamp(ns), frame_id: frame.into() }
-}
-
-/// A heading as a rotation about z.
-fn yaw_quaternion(yaw: f64) -> Quaternion {
-    let h = yaw / 2.0;
-    Quaternion { x: 0.0, y: 0.0, z: h.sin(), w: h.cos() }
-}
-
-fn pose(p: [f64; 3]) -> Pose {
-    Pose { position: Point { x: p[0], y: p[1], z: 0.0 }, orientation: yaw_quaternion(p[2]) }
-}
-
-/// An Odometry of `child` in `frame` at `ns`: the pose, its covariance
-/// and the twist unknown (zero; a log has neither).
-fn odometry(ns: u64, frame: &str, child: &str, p: [f64; 3]) -> OdometryMsg {
-    let zero = Vector3 { x: 0.0, y: 0.0, z: 0.0 };
-    OdometryMsg {
-        header: header(ns, frame),
-        child_frame_id: child.into(),
-        pose: PoseWithCovariance { pose: pose(p), covariance: Covariance([0.0; 36]) },
-        twist: TwistWithCovariance { twist: Twist { linear: zero, angular: zero }, covariance: Covariance([0.0; 36]) },
-    }
-}
-
-fn transform(ns: u64, parent: &str, child: &str, p: [f64; 3]) -> TransformStamped {
-    TransformStamped {
-        header: header(ns, parent),
-        child_frame_id: child.into(),
-        transform: Transform { translation: Vector3 { x: p[0], y: p[1], z: 0.0 }, rotation: yaw_quaternion(p[2]) },
-    }
-}
-
-/// A mount as a pose in the robot's frame (m, m, rad).
-fn mount_pose(m: &Mount) -> [f64; 3] {
-    [f64::from(m.x_mm) / 1000.0, f64::from(m.y_mm) / 1000.0, (f64::from(m.heading_mdeg) / 1000.0).to_radians()]
-}
-
-/// A message as rosbag2 stores it: the CDR encapsulation header (`00 01`:
-/// plain CDR, little-endian; options 0), then the body, aligned from its start.
+/// A message as rosbag2 stores it ([`msgs::encode`]), its failure named by topic.
 fn encode<T: Serialize>(topic: &str, msg: &T) -> Result<Vec<u8>, WriteError> {
-    let body = cdr_encoding::to_vec::<T, byteorder::LittleEndian>(msg)
-        .map_err(|e| WriteError::Encode { topic: topic.into(), problem: e.to_string() })?;
-    let mut out = Vec::with_capacity(4 + body.len());
-    out.extend_from_slice(&[0, 1, 0, 0]);
-    out.extend_from_slice(&body);
-    Ok(out)
+    msgs::encode(msg).map_err(|problem| WriteError::Encode { topic: topic.into(), problem })
 }
 
 /// The Range limits and field of view as the messages carry them (f32),
@@ -813,6 +705,7 @@ pub fn write_bag(dir: &Path, rows: &[Row], ring: &[Mount], opt: &WriteOptions) -
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::bag::msgs::{stamp, Time};
 
     /// A Range laid out by hand from the CDR rules, as the reader's test
     /// does, with Jazzy's `variance` after `range`.

@@ -1,0 +1,266 @@
+//! The DDS side of `link --ros2`: a ROS 2 node (ros2-client on RustDDS, no
+//! ROS installed) that publishes what [`super::bridge`] makes and takes
+//! amcl's inputs: `/initialpose` and the `reinitialize_global_localization`
+//! service, turned into link commands for the controller.
+
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc::Sender;
+use std::sync::{Arc, Mutex};
+use std::thread::JoinHandle;
+use std::time::{Duration, SystemTime, UNIX_EPOCH};
+
+use echoloc::link::{FromController, ToController};
+use echoloc::predict::Mount;
+use ros2_client::qos::{Durability, History, WhenFull};
+use ros2_client::{
+    Context, Message, MessageTypeName, Name, Node, NodeName, NodeOptions, Publisher, QosProfile, ServiceMapping,
+    ServiceTypeName,
+};
+use rustdds::DomainParticipantBuilder;
+
+use super::bridge::{initial_pose_command, Bridge, Out, Sample};
+use super::msgs::{DiagnosticArray, Empty, PoseWithCovarianceStamped, RangeOut};
+use super::{Ros2Args, ServiceMappingArg};
+use crate::bag::msgs::TfMessage;
+use crate::map::LabError;
+
+impl Message for PoseWithCovarianceStamped {}
+impl Message for Empty {}
+
+/// What the node did, for the link's summary.
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct Ros2Counts {
+    pub poses: u32,
+    pub tf: u32,
+    pub ranges: u32,
+    pub diagnostics: u32,
+    pub initial_poses: u32,
+    pub initial_poses_refused: u32,
+    pub global_localizations: u32,
+    pub publish_errors: u32,
+}
+
+/// The node, its publishers, and the thread that takes its inputs.
+pub struct Ros2Node {
+    // Dropped last: the publishers need it.
+    node: Node,
+    pose: Publisher<PoseWithCovarianceStamped>,
+    tf: Publisher<TfMessage>,
+    _tf_static: Publisher<TfMessage>,
+    ranges: Vec<Publisher<RangeOut>>,
+    diagnostics: Publisher<DiagnosticArray>,
+    bridge: Bridge,
+    counts: Arc<Mutex<Ros2Counts>>,
+    stop: Arc<AtomicBool>,
+    inputs: Option<JoinHandle<()>>,
+    linger: Duration,
+    pose_topic: String,
+}
+
+/// Transducer `k`'s Range topic, `/sonar_<k>`, named as its frame: a ROS 2
+/// name's token cannot start with a digit, so not the bags' `/sonar/<k>`.
+pub fn range_topic(k: usize) -> String {
+    format!("/sonar_{k}")
+}
+
+/// The host's clock, ns since the epoch.
+fn now_ns() -> u64 {
+    SystemTime::now().duration_since(UNIX_EPOCH).map_or(0, |d| d.as_nanos() as u64)
+}
+
+fn err(what: &str) -> impl Fn(ros2_client::CreateError) -> LabError + '_ {
+    move |e| LabError(format!("--ros2: {what}: {e:?}"))
+}
+
+/// The domain id from `ROS_DOMAIN_ID` (0 when unset), as ROS 2 takes it.
+pub fn domain_id() -> Result<u16, LabError> {
+    match std::env::var("ROS_DOMAIN_ID") {
+        Err(_) => Ok(0),
+        Ok(s) if s.trim().is_empty() => Ok(0),
+        Ok(s) => s
+            .trim()
+            .parse::<u16>()
+            .ok()
+            .filter(|&d| d <= 232)
+            .ok_or_else(|| LabError(format!("ROS_DOMAIN_ID={s:?}: not a domain id (0..=232)"))),
+    }
+}
+
+impl Ros2Node {
+    /// Joins the ROS 2 graph as `args` says, for a controller with ring
+    /// `mounts` fed `odometry`; commands from ROS go to `commands`.
+    pub fn start(
+        args: &Ros2Args,
+        mounts: &[Mount],
+        odometry: &[Sample],
+        commands: Sender<ToController>,
+    ) -> Result<Self, LabError> {
+        let mut b = DomainParticipantBuilder::new(domain_id()?);
+        if args.ros2_localhost {
+            b = b.with_only_networks([std::net::Ipv4Addr::LOCALHOST]);
+        }
+        let participant = b.build().map_err(|e| LabError(format!("--ros2: the DDS participant: {e:?}")))?;
+        let context = Context::from_domain_participant(participant).map_err(err("the context"))?;
+        let name = NodeName::new(&args.ros2_namespace, &args.ros2_node_name)
+            .map_err(|e| LabError(format!("--ros2-node-name/--ros2-namespace: {e:?}")))?;
+        let mut node = context
+            .new_node(name, NodeOptions::new().start_parameter_services(false))
+            .map_err(|e| LabError(format!("--ros2: the node: {e:?}")))?;
+
+        // QoS as amcl and tf2 use them.
+        let latched = QosProfile::publisher_default()
+            .reliability_reliable(WhenFull::DEFAULT)
+            .durability(Durability::TransientLocal)
+            .history(History::KeepLast { depth: 1 });
+        let stream = |depth| {
+            QosProfile::publisher_default()
+                .reliability_reliable(WhenFull::DEFAULT)
+                .durability(Durability::Volatile)
+                .history(History::KeepLast { depth })
+        };
+        let topic = |node: &mut Node, n: &str, pkg: &str, ty: &str, q: &QosProfile| {
+            let name = Name::parse(n).map_err(|e| LabError(format!("--ros2: topic {n}: {e:?}")))?;
+            node.create_topic(&name, MessageTypeName::new(pkg, ty), q).map_err(err(n))
+        };
+        let t = topic(&mut node, &args.ros2_pose_topic, "geometry_msgs", "PoseWithCovarianceStamped", &latched)?;
+        let pose = node.create_publisher(&t, None).map_err(err("/amcl_pose"))?;
+        let tfq = stream(100);
+        let t = topic(&mut node, "/tf", "tf2_msgs", "TFMessage", &tfq)?;
+        let tf = node.create_publisher(&t, None).map_err(err("/tf"))?;
+        let t = topic(&mut node, "/tf_static", "tf2_msgs", "TFMessage", &latched)?;
+        let tf_static: Publisher<TfMessage> = node.create_publisher(&t, None).map_err(err("/tf_static"))?;
+        let mut ranges = Vec::new();
+        for k in 0..mounts.len() {
+            let t = topic(&mut node, &range_topic(k), "sensor_msgs", "Range", &stream(10))?;
+            ranges.push(node.create_publisher(&t, None).map_err(err("a Range topic"))?);
+        }
+        let t = topic(&mut node, "/diagnostics", "diagnostic_msgs", "DiagnosticArray", &stream(10))?;
+        let diagnostics = node.create_publisher(&t, None).map_err(err("/diagnostics"))?;
+
+        let t = topic(&mut node, "/initialpose", "geometry_msgs", "PoseWithCovarianceStamped", &stream(10))?;
+        let initial = node.create_subscription::<PoseWithCovarianceStamped>(&t, None).map_err(err("/initialpose"))?;
+        let mapping = match args.ros2_service_mapping {
+            ServiceMappingArg::Enhanced => ServiceMapping::Enhanced,
+            ServiceMappingArg::Cyclone => ServiceMapping::Cyclone,
+            ServiceMappingArg::Basic => ServiceMapping::Basic,
+        };
+        let service = Name::parse("/reinitialize_global_localization").map_err(|e| LabError(format!("{e:?}")))?;
+        let server = node
+            .create_server::<Empty, Empty>(
+                mapping,
+                &service,
+                &ServiceTypeName::new("std_srvs", "Empty"),
+                stream(10),
+                stream(10),
+            )
+            .map_err(err("the global localization service"))?;
+
+        let bridge = Bridge::new(args.ros_distro, mounts, odometry);
+        if let Err(e) = tf_static.publish(bridge.static_tf(now_ns())) {
+            return Err(LabError(format!("--ros2: /tf_static: {e:?}")));
+        }
+        let counts = Arc::new(Mutex::new(Ros2Counts::default()));
+        let stop = Arc::new(AtomicBool::new(false));
+        let (c, s, wide) = (counts.clone(), stop.clone(), args.wide());
+        let inputs = std::thread::spawn(move || {
+            // Polled: a few ms late is nothing beside a ring cycle.
+            while !s.load(Ordering::Relaxed) {
+                while let Ok(Some((m, _))) = initial.take() {
+                    let mut c = c.lock().unwrap_or_else(|p| p.into_inner());
+                    match initial_pose_command(&m, wide) {
+                        Ok(cmd) => {
+                            eprintln!("ros2: /initialpose taken: {cmd:?}");
+                            c.initial_poses += 1;
+                            let _ = commands.send(cmd);
+                        }
+                        Err(why) => {
+                            eprintln!("ros2: /initialpose refused: {why}");
+                            c.initial_poses_refused += 1;
+                        }
+                    }
+                }
+                while let Ok(Some((id, _))) = server.receive_request() {
+                    eprintln!("ros2: reinitialize_global_localization: searching all free space");
+                    c.lock().unwrap_or_else(|p| p.into_inner()).global_localizations += 1;
+                    let _ = commands.send(ToController::Search { around: None });
+                    let _ = server.send_response(id, Empty::default());
+                }
+                std::thread::sleep(Duration::from_millis(5));
+            }
+        });
+        Ok(Self {
+            node,
+            pose,
+            tf,
+            _tf_static: tf_static,
+            ranges,
+            diagnostics,
+            bridge,
+            counts,
+            stop,
+            inputs: Some(inputs),
+            linger: Duration::from_secs_f64(args.ros2_linger_s.max(0.0)),
+            pose_topic: args.ros2_pose_topic.clone(),
+        })
+    }
+
+    /// Waits up to `timeout` until every topic the node publishes per
+    /// reading or cycle has a subscriber discovered (and a moment for the
+    /// match to settle), so that a test's reader misses nothing; `false`
+    /// when one has none by then. A robot does not wait (`--ros2-wait-s 0`).
+    pub fn wait_for_subscribers(&self, timeout: Duration) -> bool {
+        let deadline = std::time::Instant::now() + timeout;
+        let mut topics = vec![self.pose_topic.clone(), "/tf".to_string(), "/diagnostics".to_string()];
+        topics.extend((0..self.ranges.len()).map(range_topic));
+        loop {
+            if topics.iter().all(|t| self.node.subscription_count(t) > 0) {
+                std::thread::sleep(Duration::from_millis(300));
+                return true;
+            }
+            if std::time::Instant::now() > deadline {
+                return false;
+            }
+            std::thread::sleep(Duration::from_millis(10));
+        }
+    }
+
+    /// Publishes what one message from the controller says.
+    pub fn push(&mut self, m: &FromController) {
+        let mut c = self.counts.lock().unwrap_or_else(|p| p.into_inner());
+        for o in self.bridge.push(m, now_ns()) {
+            let ok = match o {
+                Out::Pose(p) => {
+                    c.poses += 1;
+                    self.pose.publish(*p).is_ok()
+                }
+                Out::Tf(t) => {
+                    c.tf += 1;
+                    self.tf.publish(t).is_ok()
+                }
+                Out::Range(k, r) => {
+                    c.ranges += 1;
+                    self.ranges.get(k).is_some_and(|p| p.publish(r).is_ok())
+                }
+                Out::Diagnostics(d) => {
+                    c.diagnostics += 1;
+                    self.diagnostics.publish(d).is_ok()
+                }
+            };
+            if !ok {
+                c.publish_errors += 1;
+            }
+        }
+    }
+
+    /// Stops taking inputs, keeps the node up `--ros2-linger-s` so reliable
+    /// readers get the last samples, and says what it did.
+    pub fn finish(mut self) -> Ros2Counts {
+        std::thread::sleep(self.linger);
+        self.stop.store(true, Ordering::Relaxed);
+        if let Some(h) = self.inputs.take() {
+            let _ = h.join();
+        }
+        let c = self.counts.lock().unwrap_or_else(|p| p.into_inner()).clone();
+        c
+    }
+}
