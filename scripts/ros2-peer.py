@@ -3,7 +3,7 @@
 Python binding (PyPI `cyclonedds`), no ROS installed, on the loopback only.
 
 It subscribes to what echoloc publishes as amcl would (/amcl_pose, /tf,
-/tf_static, /sonar_<k>, /diagnostics) with the ROS 2 type names on the wire
+/tf_static, /sonar_<k>, /diagnostics, /particlecloud) with the ROS 2 type names on the wire
 (`geometry_msgs::msg::dds_::PoseWithCovarianceStamped_` on `rt/amcl_pose`),
 and can act as rviz and a nav2 client would: publish an /initialpose (a pose
 offset from the last /amcl_pose, with a wide covariance), a malformed one, or
@@ -84,6 +84,12 @@ class PoseWithCovariance(IdlStruct, typename="geometry_msgs::msg::dds_::PoseWith
 class PoseWithCovarianceStamped(IdlStruct, typename="geometry_msgs::msg::dds_::PoseWithCovarianceStamped_"):
     header: Header
     pose: PoseWithCovariance
+
+
+@dataclass
+class PoseArray(IdlStruct, typename="geometry_msgs::msg::dds_::PoseArray_"):
+    header: Header
+    poses: sequence[Pose]
 
 
 @dataclass
@@ -206,11 +212,12 @@ def main():
     range_type = RangeJazzy if a.distro == "jazzy" else RangeHumble
     range_readers = [DataReader(dp, Topic(dp, f"rt/sonar_{k}", range_type), qos=keep_all) for k in range(a.transducers)]
     diag_reader = DataReader(dp, Topic(dp, "rt/diagnostics", DiagnosticArray), qos=keep_all)
+    cloud_reader = DataReader(dp, Topic(dp, "rt/particlecloud", PoseArray), qos=keep_all)
     initial_writer = DataWriter(dp, Topic(dp, "rt/initialpose", PoseWithCovarianceStamped), qos=Qos(rel, Policy.Durability.Volatile, Policy.History.KeepLast(10)))
     rq = DataWriter(dp, Topic(dp, "rq/reinitialize_global_localizationRequest", EmptyRequest), qos=Qos(rel, Policy.Durability.Volatile, Policy.History.KeepLast(10)))
     rr = DataReader(dp, Topic(dp, "rr/reinitialize_global_localizationReply", EmptyResponse), qos=keep_all)
 
-    poses, tfs, statics, ranges, diags, replies = [], [], [], [0] * a.transducers, [], 0
+    poses, tfs, statics, ranges, diags, replies, clouds = [], [], [], [0] * a.transducers, [], 0, []
     sent = {}
     start = last = time.monotonic()
     got_any = False
@@ -252,6 +259,10 @@ def main():
             for st in s.status:
                 diags.append({"level": int(st.level), "message": st.message})
             n += 1
+        for s in valid(cloud_reader.take(N=100)):
+            clouds.append({"stamp_ns": s.header.stamp.sec * 1_000_000_000 + s.header.stamp.nanosec,
+                           "frame": s.header.frame_id, "particles": len(s.poses)})
+            n += 1
         replies += len(valid(rr.take(N=10)))
         if n:
             got_any, last = True, time.monotonic()
@@ -278,7 +289,7 @@ def main():
             break
         time.sleep(0.002)
     print(json.dumps({"poses": poses, "tf": tfs, "tf_static": statics, "ranges": ranges, "diagnostics": diags,
-                      "service_replies": replies, "sent": sent, "left_early": left_early}))
+                      "service_replies": replies, "particle_clouds": clouds, "sent": sent, "left_early": left_early}))
 
 
 if __name__ == "__main__":

@@ -28,7 +28,7 @@ enum Cmd {
     /// Self-referencing in a simulated world (a route, odometry, a physical sonar), or on a lidar run's real geometry (--from-scans): verdicts, threshold method and EKF.
     Simulate(Box<simulate::SimulateArgs>),
     /// A robot's log (CSV, docs/log.md) or ROS 2 bag (docs/bags.md) through prediction, verdicts, the threshold method and the EKF.
-    Replay(replay::ReplayArgs),
+    Replay(Box<replay::ReplayArgs>),
     /// Logs: a ROS 2 bag written as the plain CSV log, or a log as a ROS 2 bag (docs/log.md, docs/bags.md).
     Log(bag::cli::LogArgs),
     /// Scenario files: replay one on the host through the same filters, or convert a robot's log into one.

@@ -41,9 +41,11 @@ pub struct ReplayArgs {
     pub mcap: Option<PathBuf>,
     #[command(flatten)]
     pub live: crate::foxglove::live::LiveArgs,
-    /// --live's pace: the run's seconds per wall-clock second.
+    /// --live's and --ros2's pace: the run's seconds per wall-clock second.
     #[arg(long, default_value_t = 1.0)]
     pub speed: f64,
+    #[command(flatten)]
+    pub ros2: crate::ros2::Ros2Args,
     /// Writes the map with the paths to OUT.png and the error over time to
     /// OUT-error.png (SVG for OUT.svg).
     #[arg(long)]
@@ -128,12 +130,12 @@ pub fn replay_cmd(a: &ReplayArgs) -> Result<String, LabError> {
     let map = loaded.view()?;
     let steps = steps_of_log(&log);
     let (hold, wait) = a.live.hold_and_wait().map_err(LabError)?;
-    if a.live.live.is_some() && !(a.speed.is_finite() && a.speed > 0.0) {
+    if (a.live.live.is_some() || a.ros2.ros2) && !(a.speed.is_finite() && a.speed > 0.0) {
         return Err(LabError(format!("--speed {} is not a positive number", a.speed)));
     }
     let mut how = start(&log, given);
     how.seed = a.seed;
-    how.cycle_clouds = a.mcap.is_some() || a.live.live.is_some();
+    how.cycle_clouds = a.mcap.is_some() || a.live.live.is_some() || a.ros2.ros2;
     crate::simulate::apply_start(&mut how, arg);
     let trace = filters::run(&map, map.field(), &mounts, &how, &steps, &mut |_| {})
         .map_err(|e| LabError(format!("{}: {e}", source.display())))?;
@@ -179,5 +181,14 @@ pub fn replay_cmd(a: &ReplayArgs) -> Result<String, LabError> {
         }
     }
     write_all(&outputs)?;
+    if a.ros2.ros2 {
+        let odometry: Vec<[f64; 3]> = cycles(&log.rows).into_iter().flatten().map(|r| r.odometry).collect();
+        let run =
+            crate::ros2::replay::ReplayedRun { mounts: &mounts, steps: &steps, odometry: &odometry, trace: &trace };
+        let counts = crate::ros2::replay::publish(&a.ros2, &run, a.speed)?;
+        if let Some(o) = r.as_object_mut() {
+            o.insert("ros2".into(), serde_json::to_value(counts).unwrap_or_default());
+        }
+    }
     Ok(if a.json { r.to_string() } else { serde_json::to_string_pretty(&r).unwrap_or_default() })
 }

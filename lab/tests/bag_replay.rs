@@ -415,3 +415,61 @@ fn a_damaged_compressed_chunk() {
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(!o.status.success() && err.contains("b-crc.mcap: unreadable MCAP: Error during decompression"), "{err}");
 }
+
+/// `replay --ros2` (#50): a bag of an 80 m depot run replayed from no pose
+/// and published beside an independent ROS 2 node (Cyclone DDS, Python, in
+/// `unshare -n`): it receives one `/particlecloud` (as many poses in `map`
+/// as the trace says the cycle weighed) per cycle the run's trace (`--trace`) says ended with particles, stamped
+/// at those cycles' times, none while tracking, and one `/amcl_pose` per
+/// reading the replay's JSON counts.
+#[test]
+fn replay_ros2_publishes_the_particles_while_searching() {
+    let log = tmp("bag", "depot-80m.csv");
+    run_json(&[
+        "simulate",
+        "--json",
+        "--map",
+        s(&shared_map("depot.yaml")),
+        "--seed",
+        "3",
+        "--distance-m",
+        "80",
+        "--log",
+        s(&log),
+    ]);
+    let bag = tmp("bag", "depot-80m");
+    let o = Command::new("python3").arg(root().join("scripts/fixture-bag.py")).arg(&log).arg(&bag).output().unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let trace = tmp("bag", "depot-80m-trace.csv");
+    let args: Vec<String> = ["replay", "--json", "--map", s(&shared_map("depot.yaml")), "--bag", s(&bag)]
+        .into_iter()
+        .chain(["--initial-pose", "unknown", "--speed", "60", "--trace", s(&trace)])
+        .map(String::from)
+        .collect();
+    let (o, peers) = common::beside_ros2_peers(&args, &[&[]]);
+    let report: Value = serde_json::from_slice(&o.stdout).unwrap();
+    let csv = std::fs::read_to_string(&trace).unwrap();
+    let mut lines = csv.lines();
+    let head: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let col = |name: &str| head.iter().position(|h| *h == name).unwrap();
+    let (mode, particles, time) = (col("mode"), col("particles"), col("time_s"));
+    let rows: Vec<Vec<String>> = lines.map(|l| l.split(',').map(String::from).collect()).collect();
+    let with_particles: Vec<&Vec<String>> = rows.iter().filter(|r| r[particles] != "0").collect();
+    assert!(rows.iter().any(|r| r[mode] == "tracking"), "the run found itself: not only searching");
+    assert!(with_particles.iter().all(|r| r[mode] == "searching"));
+    let clouds = peers[0]["particle_clouds"].as_array().unwrap();
+    assert_eq!(clouds.len(), with_particles.len(), "one cloud per cycle that ended with particles");
+    assert!(clouds.iter().all(|c| c["frame"] == "map"));
+    // Stamped at their cycles' times: the steps between clouds are the trace's.
+    let t0: f64 = with_particles[0][time].parse().unwrap();
+    let s0 = clouds[0]["stamp_ns"].as_i64().unwrap();
+    for (c, r) in clouds.iter().zip(&with_particles) {
+        let dt = (c["stamp_ns"].as_i64().unwrap() - s0) as f64 * 1e-9;
+        let want = r[time].parse::<f64>().unwrap() - t0;
+        assert!((dt - want).abs() < 1e-6, "{dt} s against {want} s");
+        assert_eq!(c["particles"].to_string(), r[particles], "the cloud holds the cycle's particles");
+    }
+    let poses = peers[0]["poses"].as_array().unwrap().len() as u64;
+    assert_eq!(poses, report["ros2"]["poses"].as_u64().unwrap());
+    assert_eq!(poses, report["readings"].as_u64().unwrap());
+}

@@ -284,57 +284,19 @@ fn link_live_viewers_see_what_the_recording_holds() {
     assert_eq!(leaving["messages"], 100);
 }
 
-/// Runs `link --ros2 --ros2-localhost` on the QEMU board beside Cyclone DDS
-/// peers (`scripts/ros2-peer.py`, each with its arguments), all inside a
-/// network namespace of their own (`unshare -n`: only the loopback exists,
-/// so nothing can leave the machine). Returns the link's output, its stderr,
-/// and each peer's JSON summary.
+/// `link --ros2 --ros2-localhost` on the QEMU board with the depot scenario
+/// and `link_args`, beside Cyclone DDS peers ([`common::beside_ros2_peers`]).
 fn link_beside_ros2_peers(
     elf: &std::path::Path,
     link_args: &[&str],
     peers: &[&[&str]],
 ) -> (std::process::Output, Vec<serde_json::Value>) {
     let scn = root().join("boards/qemu-mps2-an386/depot.scn");
-    let dir = std::env::temp_dir().join(format!("echoloc-ros2-{}-{}", std::process::id(), link_args.len()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let q = |s: &str| format!("'{}'", s.replace('\'', r"'\''"));
-    let mut script = String::from("set -e\nip link set lo up\n");
-    for (i, p) in peers.iter().enumerate() {
-        let args: Vec<String> = p.iter().map(|a| q(a)).collect();
-        script += &format!(
-            "python3 {} {} > {}/peer{i}.json 2> {}/peer{i}.err &\n",
-            q(root().join("scripts/ros2-peer.py").to_str().unwrap()),
-            args.join(" "),
-            dir.display(),
-            dir.display()
-        );
-    }
-    let largs: Vec<String> = link_args.iter().map(|a| q(a)).collect();
-    script += &format!(
-        "{} link --timeout-s 300 --qemu {} --scenario {} --ros2 --ros2-localhost --ros2-service-mapping cyclone --ros2-wait-s 60 {}\n",
-        q(env!("CARGO_BIN_EXE_echoloc-lab")),
-        q(elf.to_str().unwrap()),
-        q(scn.to_str().unwrap()),
-        largs.join(" ")
-    );
-    script += "wait\n";
-    let o = std::process::Command::new("unshare").args(["-n", "bash", "-c", &script]).output().unwrap();
-    assert!(
-        o.status.success(),
-        "link --ros2 or a peer failed: {}\n{}",
-        String::from_utf8_lossy(&o.stderr),
-        (0..peers.len())
-            .map(|i| std::fs::read_to_string(dir.join(format!("peer{i}.err"))).unwrap_or_default())
-            .collect::<Vec<_>>()
-            .join("\n")
-    );
-    let summaries = (0..peers.len())
-        .map(|i| {
-            let text = std::fs::read_to_string(dir.join(format!("peer{i}.json"))).unwrap();
-            serde_json::from_str(&text).unwrap_or_else(|e| panic!("peer {i}: {e}: {text}"))
-        })
-        .collect();
-    (o, summaries)
+    let mut command: Vec<String> = ["link", "--timeout-s", "300", "--qemu"].map(String::from).to_vec();
+    command.extend([elf.to_str().unwrap().to_string(), "--scenario".into(), scn.to_str().unwrap().into()]);
+    command.extend(["--ros2-service-mapping", "cyclone"].map(String::from));
+    command.extend(link_args.iter().map(|a| a.to_string()));
+    common::beside_ros2_peers(&command, peers)
 }
 
 fn f64s(v: &serde_json::Value) -> Vec<f64> {

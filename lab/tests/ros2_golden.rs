@@ -1,5 +1,6 @@
 //! Golden bytes for `link --ros2` (#50): every message the node publishes,
-//! made by the node's own bridge from a controller's messages and encoded
+//! made by the node's own bridge from a controller's messages (and a
+//! replay's particles) and encoded
 //! by echoloc, is byte-identical to the same message built from its fields
 //! as Humble's, Jazzy's and Kilted's type and serialized by PyPI's `rosbags`
 //! (`scripts/ros2-golden.py`), an independent CDR serializer with each
@@ -12,7 +13,7 @@ use common::root;
 use echoloc::link::{CycleReport, FromController, ReadingReport, WireMode, WireOutcome, WireUpdate, WireVerdict};
 use echoloc::predict::Mount;
 use echoloc_lab::bag::msgs::encode;
-use echoloc_lab::ros2::bridge::{Bridge, Out};
+use echoloc_lab::ros2::bridge::{particle_cloud, Bridge, Out};
 use echoloc_lab::ros2::msgs::{planar_covariance, Distro, PoseWithCovarianceStamped};
 use std::io::Write;
 
@@ -66,6 +67,8 @@ fn every_published_message_is_byte_identical_to_rosbags_for_each_distro() {
             handoff: false,
         };
         outs.extend(b.push(&FromController::Cycle(cycle), 0));
+        // A replay's particles (`replay --ros2`; the link carries none).
+        outs.push(Out::Particles(particle_cloud(1_700_000_000_300_000_000, &[[1.0, 2.0, 0.5], [-3.25, 4.0, -2.0]])));
         let mut kinds = Vec::new();
         for o in outs {
             let (ty, v, cdr) = match &o {
@@ -73,6 +76,7 @@ fn every_published_message_is_byte_identical_to_rosbags_for_each_distro() {
                 Out::Tf(t) => ("tf2_msgs/msg/TFMessage", serde_json::to_value(t), encode(t)),
                 Out::Range(_, r) => ("sensor_msgs/msg/Range", serde_json::to_value(r), encode(r)),
                 Out::Diagnostics(d) => ("diagnostic_msgs/msg/DiagnosticArray", serde_json::to_value(d), encode(d)),
+                Out::Particles(p) => ("geometry_msgs/msg/PoseArray", serde_json::to_value(p), encode(p)),
             };
             kinds.push(ty);
             push(ty, distro, v.unwrap(), cdr.unwrap());
@@ -109,5 +113,5 @@ fn every_published_message_is_byte_identical_to_rosbags_for_each_distro() {
     assert!(o.status.success(), "ros2-golden: {out} {}", String::from_utf8_lossy(&o.stderr));
     let v: serde_json::Value = serde_json::from_str(&out).unwrap();
     assert_eq!(v["checked"].as_u64().unwrap() as usize, lines.len());
-    assert_eq!(lines.len(), 3 * 9);
+    assert_eq!(lines.len(), 3 * 10);
 }

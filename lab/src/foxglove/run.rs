@@ -137,7 +137,7 @@ pub fn record_into<M: MapSource>(
                 Reading::Echo { range_mm } => Some(range_mm),
                 _ => None,
             };
-            let at = At { t, pose: x, covariance: trace.position_covariance.get(i).copied() };
+            let at = At { t, pose: x, covariance: trace.covariance_after.get(i).map(|c| [c[0], c[1], c[3]]) };
             let sonar = Sonar {
                 mount: mounts.get(usize::from(s.transducer)),
                 transducer: s.transducer,

@@ -15,8 +15,8 @@ use echoloc::link::{CycleReport, FromController, ReadingReport, ToController, Wi
 use echoloc::predict::Mount;
 
 use super::msgs::{
-    planar_covariance, DiagnosticArray, DiagnosticStatus, Distro, KeyValue, PoseWithCovarianceStamped, RangeHumble,
-    RangeOut,
+    planar_covariance, DiagnosticArray, DiagnosticStatus, Distro, KeyValue, PoseArray, PoseWithCovarianceStamped,
+    RangeHumble, RangeOut,
 };
 use crate::bag::msgs::{header, mount_pose, pose, transform, PoseWithCovariance, RangeMsg, TfMessage, ULTRASOUND};
 use crate::bag::write::{sonar_frame, BASE_FRAME, MAP_FRAME, ODOM_FRAME, POLAROID_FIELD_OF_VIEW_RAD};
@@ -36,6 +36,8 @@ pub enum Out {
     Range(usize, RangeOut),
     /// `/diagnostics`: the localizer's mode.
     Diagnostics(DiagnosticArray),
+    /// `/particlecloud`: the particles at a searching cycle's end (a replay's: the link carries none).
+    Particles(PoseArray),
 }
 
 /// The link's messages turned into ROS 2 messages, in arrival order.
@@ -80,6 +82,101 @@ fn wrap(a: f64) -> f64 {
     }
 }
 
+/// `/amcl_pose`'s message: `pose` (x, y m, φ rad) in `map` at `ns`, with the
+/// covariance's upper triangle xx, xy, xφ, yy, yφ, φφ.
+pub fn pose_message(ns: u64, p: [f64; 3], covariance: [f32; 6]) -> PoseWithCovarianceStamped {
+    PoseWithCovarianceStamped {
+        header: header(ns, MAP_FRAME),
+        pose: PoseWithCovariance { pose: pose(p), covariance: planar_covariance(covariance) },
+    }
+}
+
+/// `map → odom` at `ns` = (map → base) ∘ (odom → base)⁻¹, from the pose in
+/// the map and the odometry's at the same time.
+pub fn map_to_odom(ns: u64, p: [f64; 3], o: [f64; 3]) -> TfMessage {
+    let phi = wrap(p[2] - o[2]);
+    let (s, c) = phi.sin_cos();
+    let mo = [p[0] - (c * o[0] - s * o[1]), p[1] - (s * o[0] + c * o[1]), phi];
+    TfMessage { transforms: vec![transform(ns, MAP_FRAME, ODOM_FRAME, mo)] }
+}
+
+/// Transducer `k`'s `sensor_msgs/Range` at `ns` as `distro` lays it out:
+/// `range` m (`+Inf`: no echo, REP 117), the Polaroid's cone and limits.
+pub fn range_message(distro: Distro, ns: u64, k: usize, range: f32) -> RangeOut {
+    let h = header(ns, &sonar_frame(k));
+    let (fov, min, max) = (POLAROID_FIELD_OF_VIEW_RAD as f32, POLAROID_MIN_RANGE_M as f32, POLAROID_MAX_RANGE_M as f32);
+    if distro.range_has_variance() {
+        RangeOut::Jazzy(RangeMsg {
+            header: h,
+            radiation_type: ULTRASOUND,
+            field_of_view: fov,
+            min_range: min,
+            max_range: max,
+            range,
+            variance: 0.0,
+        })
+    } else {
+        RangeOut::Humble(RangeHumble {
+            header: h,
+            radiation_type: ULTRASOUND,
+            field_of_view: fov,
+            min_range: min,
+            max_range: max,
+            range,
+        })
+    }
+}
+
+/// The ring's mounts as `base_link → sonar_<k>` at `ns`, for `/tf_static`.
+pub fn static_mounts(ns: u64, mounts: &[Mount]) -> TfMessage {
+    let transforms =
+        mounts.iter().enumerate().map(|(k, m)| transform(ns, BASE_FRAME, &sonar_frame(k), mount_pose(m))).collect();
+    TfMessage { transforms }
+}
+
+/// `/particlecloud`'s message: the particles' poses in `map` at `ns`.
+pub fn particle_cloud(ns: u64, particles: &[[f32; 3]]) -> PoseArray {
+    PoseArray { header: header(ns, MAP_FRAME), poses: particles.iter().map(|q| pose(q.map(f64::from))).collect() }
+}
+
+/// `/diagnostics`' message for a ring cycle that ended in `mode`, with the
+/// cycle's number, particles weighed, gate counts (tested, accepted),
+/// confirmed readings and whether it handed off.
+pub fn mode_diagnostics(
+    ns: u64,
+    mode: WireMode,
+    cycle: u32,
+    particles: u16,
+    gate: [u16; 2],
+    confirmed: u16,
+    handoff: bool,
+) -> DiagnosticArray {
+    let message = match mode {
+        _ if handoff => "tracking: the particles handed off to the EKF".to_string(),
+        WireMode::Tracking => format!("tracking: the gate accepted {} of {} readings", gate[1], gate[0]),
+        WireMode::Searching => format!("searching with {particles} particles"),
+        WireMode::Lost => "lost: the EKF's estimate is not trusted".to_string(),
+    };
+    let kv = |k: &str, v: String| KeyValue { key: k.into(), value: v };
+    DiagnosticArray {
+        header: header(ns, ""),
+        status: vec![DiagnosticStatus {
+            level: level(mode),
+            name: "echoloc: localization".into(),
+            message,
+            hardware_id: "sonar controller".into(),
+            values: vec![
+                kv("cycle", cycle.to_string()),
+                kv("particles", particles.to_string()),
+                kv("gate tested", gate[0].to_string()),
+                kv("gate accepted", gate[1].to_string()),
+                kv("confirmed", confirmed.to_string()),
+                kv("handoff", handoff.to_string()),
+            ],
+        }],
+    }
+}
+
 impl Bridge {
     /// For a controller with ring `mounts`, fed `odometry` (in the order sent).
     pub fn new(distro: Distro, mounts: &[Mount], odometry: &[Sample]) -> Self {
@@ -93,13 +190,7 @@ impl Bridge {
 
     /// The mounts as `base_link → sonar_<k>`, for `/tf_static`.
     pub fn static_tf(&self, host_ns: u64) -> TfMessage {
-        let transforms = self
-            .mounts
-            .iter()
-            .enumerate()
-            .map(|(k, m)| transform(host_ns, BASE_FRAME, &sonar_frame(k), mount_pose(m)))
-            .collect();
-        TfMessage { transforms }
+        static_mounts(host_ns, &self.mounts)
     }
 
     /// The odometry pose at controller time `t` (µs, unwrapped): between the
@@ -149,16 +240,9 @@ impl Bridge {
         let ns = self.host_ns(t);
         self.last_ns = ns;
         let p = r.pose.map(f64::from);
-        let mut out = vec![Out::Pose(Box::new(PoseWithCovarianceStamped {
-            header: header(ns, MAP_FRAME),
-            pose: PoseWithCovariance { pose: pose(p), covariance: planar_covariance(r.covariance) },
-        }))];
+        let mut out = vec![Out::Pose(Box::new(pose_message(ns, p, r.covariance)))];
         if let Some(o) = self.odometry_at(t) {
-            // map → odom = (map → base) ∘ (odom → base)⁻¹.
-            let phi = wrap(p[2] - o[2]);
-            let (s, c) = phi.sin_cos();
-            let mo = [p[0] - (c * o[0] - s * o[1]), p[1] - (s * o[0] + c * o[1]), phi];
-            out.push(Out::Tf(TfMessage { transforms: vec![transform(ns, MAP_FRAME, ODOM_FRAME, mo)] }));
+            out.push(Out::Tf(map_to_odom(ns, p, o)));
         }
         let range = match r.outcome {
             WireOutcome::Range(mm) => Some(mm as f32 / 1000.0),
@@ -169,60 +253,13 @@ impl Bridge {
         };
         if let Some(range) = range {
             let k = usize::from(r.transducer);
-            let h = header(ns, &sonar_frame(k));
-            let (fov, min, max) =
-                (POLAROID_FIELD_OF_VIEW_RAD as f32, POLAROID_MIN_RANGE_M as f32, POLAROID_MAX_RANGE_M as f32);
-            let msg = if self.distro.range_has_variance() {
-                RangeOut::Jazzy(RangeMsg {
-                    header: h,
-                    radiation_type: ULTRASOUND,
-                    field_of_view: fov,
-                    min_range: min,
-                    max_range: max,
-                    range,
-                    variance: 0.0,
-                })
-            } else {
-                RangeOut::Humble(RangeHumble {
-                    header: h,
-                    radiation_type: ULTRASOUND,
-                    field_of_view: fov,
-                    min_range: min,
-                    max_range: max,
-                    range,
-                })
-            };
-            out.push(Out::Range(k, msg));
+            out.push(Out::Range(k, range_message(self.distro, ns, k, range)));
         }
         out
     }
 
     fn diagnostics(&self, c: &CycleReport) -> DiagnosticArray {
-        let message = match c.mode {
-            _ if c.handoff => "tracking: the particles handed off to the EKF".to_string(),
-            WireMode::Tracking => format!("tracking: the gate accepted {} of {} readings", c.gate[1], c.gate[0]),
-            WireMode::Searching => format!("searching with {} particles", c.particles),
-            WireMode::Lost => "lost: the EKF's estimate is not trusted".to_string(),
-        };
-        let kv = |k: &str, v: String| KeyValue { key: k.into(), value: v };
-        let v = c.verdicts;
-        DiagnosticArray {
-            header: header(self.last_ns, ""),
-            status: vec![DiagnosticStatus {
-                level: level(c.mode),
-                name: "echoloc: localization".into(),
-                message,
-                hardware_id: "sonar controller".into(),
-                values: vec![
-                    kv("cycle", c.cycle.to_string()),
-                    kv("particles", c.particles.to_string()),
-                    kv("gate tested", c.gate[0].to_string()),
-                    kv("gate accepted", c.gate[1].to_string()),
-                    kv("confirmed", v[0].to_string()),
-                    kv("handoff", c.handoff.to_string()),
-                ],
-            }],
-        }
+        mode_diagnostics(self.last_ns, c.mode, c.cycle, c.particles, c.gate, c.verdicts[0], c.handoff)
     }
 }
 

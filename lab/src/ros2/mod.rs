@@ -7,11 +7,13 @@
 //!
 //! - [`msgs`]: the messages beyond a bag's, and the distribution's layouts;
 //! - [`bridge`]: the link's messages to those (no DDS: tested alone);
-//! - [`node`]: the DDS node (ros2-client on RustDDS).
+//! - [`node`]: the DDS node (ros2-client on RustDDS);
+//! - [`replay`]: `replay --ros2`, a replayed run published as the link would, with its particles.
 
 pub mod bridge;
 pub mod msgs;
 pub mod node;
+pub mod replay;
 
 use clap::{Args, ValueEnum};
 

@@ -19,7 +19,7 @@ use ros2_client::{
 use rustdds::DomainParticipantBuilder;
 
 use super::bridge::{initial_pose_command, Bridge, Out, Sample};
-use super::msgs::{DiagnosticArray, Empty, PoseWithCovarianceStamped, RangeOut};
+use super::msgs::{DiagnosticArray, Empty, PoseArray, PoseWithCovarianceStamped, RangeOut};
 use super::{Ros2Args, ServiceMappingArg};
 use crate::bag::msgs::TfMessage;
 use crate::map::LabError;
@@ -34,6 +34,7 @@ pub struct Ros2Counts {
     pub tf: u32,
     pub ranges: u32,
     pub diagnostics: u32,
+    pub particle_clouds: u32,
     pub initial_poses: u32,
     pub initial_poses_refused: u32,
     pub global_localizations: u32,
@@ -49,6 +50,7 @@ pub struct Ros2Node {
     _tf_static: Publisher<TfMessage>,
     ranges: Vec<Publisher<RangeOut>>,
     diagnostics: Publisher<DiagnosticArray>,
+    particles: Publisher<PoseArray>,
     bridge: Bridge,
     counts: Arc<Mutex<Ros2Counts>>,
     stop: Arc<AtomicBool>,
@@ -64,7 +66,7 @@ pub fn range_topic(k: usize) -> String {
 }
 
 /// The host's clock, ns since the epoch.
-fn now_ns() -> u64 {
+pub fn now_ns() -> u64 {
     SystemTime::now().duration_since(UNIX_EPOCH).map_or(0, |d| d.as_nanos() as u64)
 }
 
@@ -136,6 +138,8 @@ impl Ros2Node {
         }
         let t = topic(&mut node, "/diagnostics", "diagnostic_msgs", "DiagnosticArray", &stream(10))?;
         let diagnostics = node.create_publisher(&t, None).map_err(err("/diagnostics"))?;
+        let t = topic(&mut node, "/particlecloud", "geometry_msgs", "PoseArray", &stream(5))?;
+        let particles = node.create_publisher(&t, None).map_err(err("/particlecloud"))?;
 
         let t = topic(&mut node, "/initialpose", "geometry_msgs", "PoseWithCovarianceStamped", &stream(10))?;
         let initial = node.create_subscription::<PoseWithCovarianceStamped>(&t, None).map_err(err("/initialpose"))?;
@@ -195,6 +199,7 @@ impl Ros2Node {
             _tf_static: tf_static,
             ranges,
             diagnostics,
+            particles,
             bridge,
             counts,
             stop,
@@ -226,29 +231,38 @@ impl Ros2Node {
 
     /// Publishes what one message from the controller says.
     pub fn push(&mut self, m: &FromController) {
-        let mut c = self.counts.lock().unwrap_or_else(|p| p.into_inner());
         for o in self.bridge.push(m, now_ns()) {
-            let ok = match o {
-                Out::Pose(p) => {
-                    c.poses += 1;
-                    self.pose.publish(*p).is_ok()
-                }
-                Out::Tf(t) => {
-                    c.tf += 1;
-                    self.tf.publish(t).is_ok()
-                }
-                Out::Range(k, r) => {
-                    c.ranges += 1;
-                    self.ranges.get(k).is_some_and(|p| p.publish(r).is_ok())
-                }
-                Out::Diagnostics(d) => {
-                    c.diagnostics += 1;
-                    self.diagnostics.publish(d).is_ok()
-                }
-            };
-            if !ok {
-                c.publish_errors += 1;
+            self.publish(o);
+        }
+    }
+
+    /// Publishes one message on its topic.
+    pub fn publish(&self, o: Out) {
+        let mut c = self.counts.lock().unwrap_or_else(|p| p.into_inner());
+        let ok = match o {
+            Out::Pose(p) => {
+                c.poses += 1;
+                self.pose.publish(*p).is_ok()
             }
+            Out::Tf(t) => {
+                c.tf += 1;
+                self.tf.publish(t).is_ok()
+            }
+            Out::Range(k, r) => {
+                c.ranges += 1;
+                self.ranges.get(k).is_some_and(|p| p.publish(r).is_ok())
+            }
+            Out::Diagnostics(d) => {
+                c.diagnostics += 1;
+                self.diagnostics.publish(d).is_ok()
+            }
+            Out::Particles(p) => {
+                c.particle_clouds += 1;
+                self.particles.publish(p).is_ok()
+            }
+        };
+        if !ok {
+            c.publish_errors += 1;
         }
     }
 

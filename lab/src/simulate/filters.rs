@@ -121,8 +121,9 @@ pub struct Trace {
     pub localizer: localize::LocalizerCounts,
     /// Per reading: the localizer's mode after it.
     pub modes: Vec<Mode>,
-    /// Per reading: the estimate's position covariance after it (σ²x, σxy, σ²y; m²).
-    pub position_covariance: Vec<[f32; 3]>,
+    /// Per reading: the estimate's covariance after it, upper triangle
+    /// xx, xy, xφ, yy, yφ, φφ (m², m·rad, rad²).
+    pub covariance_after: Vec<[f32; 6]>,
 }
 
 /// What the localizer reported at the end of a ring cycle.
@@ -633,7 +634,7 @@ fn run_with<M: MapSource, const N: usize>(
         t.threshold.push(f64x3(thr.state()));
         t.ekf.push(f64x3(loc.state()));
         let p = loc.covariance();
-        t.position_covariance.push([p[0][0], p[0][1], p[1][1]]);
+        t.covariance_after.push([p[0][0], p[0][1], p[0][2], p[1][1], p[1][2], p[2][2]]);
         t.modes.push(loc.mode());
         if i % 256 == 0 {
             progress(i as f64 / steps.len().max(1) as f64);

@@ -104,3 +104,42 @@ fn within(r: &(f64, f64, f64, f64), x: f64, y: f64) -> bool {
 pub fn in_two_rooms(x: f64, y: f64) -> bool {
     BUILDING.iter().any(|r| within(r, x, y)) && !BOXES.iter().any(|r| within(r, x, y))
 }
+
+/// Runs the lab with `args` and `--ros2 --ros2-localhost --ros2-wait-s 60`
+/// beside Cyclone DDS peers (`scripts/ros2-peer.py`, each with its
+/// arguments), all inside a network namespace of their own (`unshare -n`,
+/// the loopback brought up: no other interface exists, so nothing leaves
+/// the machine). Returns the lab's output and each peer's JSON summary.
+pub fn beside_ros2_peers(args: &[String], peers: &[&[&str]]) -> (std::process::Output, Vec<serde_json::Value>) {
+    static RUN: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+    let n = RUN.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    let dir = std::env::temp_dir().join(format!("echoloc-ros2-{}-{n}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let q = |s: &str| format!("'{}'", s.replace('\'', r"'\''"));
+    let mut script = String::from("set -e\nip link set lo up\n");
+    for (i, p) in peers.iter().enumerate() {
+        let a: Vec<String> = p.iter().map(|a| q(a)).collect();
+        let peer = root().join("scripts/ros2-peer.py");
+        let d = dir.display();
+        script +=
+            &format!("python3 {} {} > {d}/peer{i}.json 2> {d}/peer{i}.err &\n", q(peer.to_str().unwrap()), a.join(" "));
+    }
+    let a: Vec<String> = args.iter().map(|a| q(a)).collect();
+    let lab = env!("CARGO_BIN_EXE_echoloc-lab");
+    script += &format!("{} {} --ros2 --ros2-localhost --ros2-wait-s 60\nwait\n", q(lab), a.join(" "));
+    let o = Command::new("unshare").args(["-n", "bash", "-c", &script]).output().unwrap();
+    let errs = || {
+        (0..peers.len())
+            .map(|i| std::fs::read_to_string(dir.join(format!("peer{i}.err"))).unwrap_or_default())
+            .collect::<Vec<_>>()
+            .join("\n")
+    };
+    assert!(o.status.success(), "the lab or a peer failed: {}\n{}", String::from_utf8_lossy(&o.stderr), errs());
+    let summaries = (0..peers.len())
+        .map(|i| {
+            let text = std::fs::read_to_string(dir.join(format!("peer{i}.json"))).unwrap();
+            serde_json::from_str(&text).unwrap_or_else(|e| panic!("peer {i}: {e}: {text} {}", errs()))
+        })
+        .collect();
+    (o, summaries)
+}
