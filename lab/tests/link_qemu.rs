@@ -457,8 +457,10 @@ fn link_ros2_serves_an_independent_node_as_amcl_would() {
     // The peer that left and the one that came late.
     assert_eq!(peers[1]["left_early"], true);
     assert!(peers[1]["poses"].as_array().unwrap().len() >= 300);
+    // Not fewer than the last: RustDDS trims a writer's history to its depth
+    // on a 6 s timer, so a late reader may get older poses too.
     let late = peers[2]["poses"].as_array().unwrap();
-    assert!(!late.is_empty() && late.len() < readings, "late: {}", late.len());
+    assert!(!late.is_empty() && late.len() <= readings, "late: {}", late.len());
     assert_eq!(peers[2]["tf_static"].as_array().unwrap().len(), 16, "the mounts are latched");
     assert_eq!(late.last().unwrap()["pose"], poses.last().unwrap()["pose"]);
 }
