@@ -35,7 +35,7 @@ pub enum ServiceMappingArg {
 #[derive(Args, Clone, Debug)]
 pub struct Ros2Args {
     /// Be a ROS 2 node beside the link (docs/ros2.md): /amcl_pose, /tf map → odom, /tf_static,
-    /// /sonar_<k>, /diagnostics; takes /initialpose and /reinitialize_global_localization.
+    /// /sonar_K (K the transducer), /diagnostics; takes /initialpose and /reinitialize_global_localization.
     /// The domain comes from ROS_DOMAIN_ID.
     #[arg(long)]
     pub ros2: bool,
