@@ -18,6 +18,7 @@ use super::msgs::{
     planar_covariance, DiagnosticArray, DiagnosticStatus, Distro, KeyValue, PoseArray, PoseWithCovarianceStamped,
     RangeHumble, RangeOut,
 };
+use crate::angle::wrap;
 use crate::bag::msgs::{header, mount_pose, pose, transform, PoseWithCovariance, RangeMsg, TfMessage, ULTRASOUND};
 use crate::bag::write::{sonar_frame, BASE_FRAME, MAP_FRAME, ODOM_FRAME, POLAROID_FIELD_OF_VIEW_RAD};
 use crate::bag::write::{POLAROID_MAX_RANGE_M, POLAROID_MIN_RANGE_M};
@@ -70,16 +71,6 @@ fn unwrap_us(epoch: &mut u64, last: &mut Option<u32>, t: u32) -> u64 {
     }
     *last = Some(t);
     *epoch + u64::from(t)
-}
-
-/// θ wrapped to (−π, π].
-fn wrap(a: f64) -> f64 {
-    let w = a.rem_euclid(2.0 * std::f64::consts::PI);
-    if w > std::f64::consts::PI {
-        w - 2.0 * std::f64::consts::PI
-    } else {
-        w
-    }
 }
 
 /// `/amcl_pose`'s message: `pose` (x, y m, φ rad) in `map` at `ns`, with the
