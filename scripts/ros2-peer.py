@@ -8,12 +8,16 @@ It subscribes to what echoloc publishes as amcl would (/amcl_pose, /tf,
 and can act as rviz and a nav2 client would: publish an /initialpose (a pose
 offset from the last /amcl_pose, with a wide covariance), a malformed one, or
 call /reinitialize_global_localization (std_srvs/Empty, rmw_cyclonedds'
-service mapping). It prints one JSON summary and exits when nothing has come
-for --idle-s seconds (after something came), or at --timeout-s.
+service mapping). As a robot's odometry node would, it can publish /odom
+(nav_msgs/Odometry, reliable) from a JSON-lines file of the controller's
+clock ({"time_us", "x", "y", "theta"}), stamped on the host's clock through
+the anchor the link says on /diagnostics at the controller's Hello. It prints
+one JSON summary and exits when nothing has come for --idle-s seconds (after
+something came), or at --timeout-s.
 
     python3 scripts/ros2-peer.py [--initial-after N --offset-m 2 --sigma-m 2.5]
         [--bad-initial-after N] [--global-after N] [--leave-after N] [--late S]
-        [--mark N FILE] [--join-when FILE]
+        [--mark N FILE] [--join-when FILE] [--odom FILE [--odom-bad]]
 """
 import argparse
 import json
@@ -159,6 +163,26 @@ class DiagnosticArray(IdlStruct, typename="diagnostic_msgs::msg::dds_::Diagnosti
     status: sequence[DiagnosticStatus]
 
 
+@dataclass
+class Twist(IdlStruct, typename="geometry_msgs::msg::dds_::Twist_"):
+    linear: Vector3
+    angular: Vector3
+
+
+@dataclass
+class TwistWithCovariance(IdlStruct, typename="geometry_msgs::msg::dds_::TwistWithCovariance_"):
+    twist: Twist
+    covariance: array[float64, 36]
+
+
+@dataclass
+class Odometry(IdlStruct, typename="nav_msgs::msg::dds_::Odometry_"):
+    header: Header
+    child_frame_id: str
+    pose: PoseWithCovariance
+    twist: TwistWithCovariance
+
+
 # rmw_cyclonedds' service mapping: the client's id and a sequence number before the request.
 @dataclass
 class EmptyRequest(IdlStruct, typename="std_srvs::srv::dds_::Empty_Request_"):
@@ -196,6 +220,9 @@ def main():
     ap.add_argument("--late", type=float, default=0.0, help="join this many seconds late")
     ap.add_argument("--join-when", help="join only once this file exists (another peer's --mark)")
     ap.add_argument("--mark", nargs=2, metavar=("N", "FILE"), help="create FILE after N /amcl_pose")
+    ap.add_argument("--odom", help="publish /odom from this JSON-lines file once the link's Hello is said")
+    ap.add_argument("--odom-bad", action="store_true",
+                    help="and three it must refuse: one stamped before the Hello, one in frame map, one NaN")
     ap.add_argument("--idle-s", type=float, default=4.0)
     ap.add_argument("--timeout-s", type=float, default=400.0)
     a = ap.parse_args()
@@ -216,6 +243,12 @@ def main():
     initial_writer = DataWriter(dp, Topic(dp, "rt/initialpose", PoseWithCovarianceStamped), qos=Qos(rel, Policy.Durability.Volatile, Policy.History.KeepLast(10)))
     rq = DataWriter(dp, Topic(dp, "rq/reinitialize_global_localizationRequest", EmptyRequest), qos=Qos(rel, Policy.Durability.Volatile, Policy.History.KeepLast(10)))
     rr = DataReader(dp, Topic(dp, "rr/reinitialize_global_localizationReply", EmptyResponse), qos=keep_all)
+    odom_writer = DataWriter(dp, Topic(dp, "rt/odom", Odometry), qos=Qos(rel, Policy.Durability.Volatile, Policy.History.KeepAll))
+    odom = []
+    if a.odom:
+        with open(a.odom) as f:
+            odom = [json.loads(line) for line in f if line.strip()]
+    odom_next, odom_bad_sent, hello = 0, 0, None
 
     poses, tfs, statics, ranges, diags, replies, clouds = [], [], [], [0] * a.transducers, [], 0, []
     sent = {}
@@ -257,7 +290,11 @@ def main():
             n += len(got)
         for s in valid(diag_reader.take(N=100)):
             for st in s.status:
-                diags.append({"level": int(st.level), "message": st.message})
+                values = {kv.key: kv.value for kv in st.values}
+                diags.append({"level": int(st.level), "name": st.name, "message": st.message,
+                              "stamp_ns": s.header.stamp.sec * 1_000_000_000 + s.header.stamp.nanosec})
+                if st.name == "echoloc: link":
+                    hello = (diags[-1]["stamp_ns"], int(values["controller time us"]))
             n += 1
         for s in valid(cloud_reader.take(N=100)):
             clouds.append({"stamp_ns": s.header.stamp.sec * 1_000_000_000 + s.header.stamp.nanosec,
@@ -284,12 +321,33 @@ def main():
         if a.mark and "mark" not in sent and len(poses) >= int(a.mark[0]):
             open(a.mark[1], "w").close()
             sent["mark"] = {"at_pose": len(poses)}
+        if hello and odom_next < len(odom) and odom_writer.get_matched_subscriptions():
+            h, c = hello
+
+            def odometry(ns, frame, x, y, th):
+                q = Quaternion(0.0, 0.0, math.sin(th / 2), math.cos(th / 2))
+                zero = Vector3(0.0, 0.0, 0.0)
+                return Odometry(Header(Time(ns // 1_000_000_000, ns % 1_000_000_000), frame), "base_link",
+                                PoseWithCovariance(Pose(Point(x, y, 0.0), q), [0.0] * 36),
+                                TwistWithCovariance(Twist(zero, zero), [0.0] * 36))
+            if a.odom_bad and odom_bad_sent == 0 and odom_next >= 10:
+                s0 = odom[0]
+                odom_writer.write(odometry(h - 1_000_000_000, "odom", s0["x"], s0["y"], s0["theta"]))
+                odom_writer.write(odometry(h + 5, "map", 1.0, 2.0, 0.0))
+                odom_writer.write(odometry(h + 6, "odom", float("nan"), 0.0, 0.0))
+                odom_bad_sent = 3
+            # A burst at most per round: the link polls its reader every few ms.
+            for s in odom[odom_next:odom_next + 8]:
+                odom_writer.write(odometry(h + (s["time_us"] - c) * 1000, "odom", s["x"], s["y"], s["theta"]))
+                odom_next += 1
+            n += 1
         if a.leave_after is not None and len(poses) >= a.leave_after:
             left_early = True
             break
         time.sleep(0.002)
     print(json.dumps({"poses": poses, "tf": tfs, "tf_static": statics, "ranges": ranges, "diagnostics": diags,
-                      "service_replies": replies, "particle_clouds": clouds, "sent": sent, "left_early": left_early}))
+                      "service_replies": replies, "particle_clouds": clouds, "sent": sent, "left_early": left_early,
+                      "odom_sent": odom_next, "odom_bad_sent": odom_bad_sent, "hello": hello}))
 
 
 if __name__ == "__main__":

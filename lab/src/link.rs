@@ -1,6 +1,7 @@
 //! `echoloc-lab link`: the robot computer's end of the host link
 //! (`docs/link.md`). Streams odometry to a controller — cumulative poses
-//! composed from a scenario's increments, or JSON lines from stdin — and
+//! composed from a scenario's increments, JSON lines from stdin, or with
+//! `--ros2 --ros2-odom` the robot's `/odom` as it comes — and
 //! prints every message the controller sends back as a JSON line. With
 //! `--qemu ELF` it first starts the QEMU firmware (the board's `link`
 //! binary) with UART0 on a Unix socket and the scenario in the board's
@@ -62,6 +63,13 @@ pub struct LinkArgs {
 
 /// Odometry samples as the link sends them: (time µs, x m, y m, θ rad).
 type Sample = crate::ros2::bridge::Sample;
+
+/// Where the odometry comes from: all known before the run (a scenario,
+/// stdin), or as it comes (`/odom`).
+enum Feed {
+    Fixed(Vec<Sample>),
+    Stream(std::sync::mpsc::Receiver<Sample>),
+}
 
 /// How far ahead of the controller's last reading the odometry runs when
 /// commands can come mid-run (`--ros2`), µs: enough that the controller
@@ -166,14 +174,25 @@ struct Sent {
     commands: u32,
 }
 
-/// Sends every sample, then `End`; stops at the first write error (a
-/// controller that closed the line), returning what went out.
-fn send_all(w: UnixStream, samples: Vec<Sample>, corrupt_every: Option<u32>, commands: Option<Commands>) -> Sent {
+/// Sends every sample, then `End` (a stream has none: it ends when the
+/// reader is done); stops at the first write error (a controller that
+/// closed the line), returning what went out.
+fn send_all(w: UnixStream, feed: Feed, corrupt_every: Option<u32>, commands: Option<Commands>) -> Sent {
     let mut sent = Sent::default();
     let mut commands = commands;
-    let _ = send_frames(w, samples, corrupt_every, &mut sent, commands.as_mut());
+    let _ = send_frames(w, feed, corrupt_every, &mut sent, commands.as_mut());
     sent.commands = commands.map_or(0, |c| c.sent);
     sent
+}
+
+/// Sends the commands that came; `false` once the reader is done.
+fn send_commands(w: &mut UnixStream, c: &mut Commands, buf: &mut [u8]) -> std::io::Result<bool> {
+    while let Ok(cmd) = c.rx.try_recv() {
+        let n = encode::<_, 64>(&cmd, buf).map_err(|e| std::io::Error::other(format!("{e:?}")))?;
+        w.write_all(&buf[..n])?;
+        c.sent += 1;
+    }
+    Ok(!c.done.load(std::sync::atomic::Ordering::Relaxed))
 }
 
 /// With commands: waits until `time_us` is within [`PACED_LEAD_US`] of the
@@ -181,12 +200,7 @@ fn send_all(w: UnixStream, samples: Vec<Sample>, corrupt_every: Option<u32>, com
 /// sending the commands that come meanwhile. `false` once the reader is done.
 fn pace(w: &mut UnixStream, c: &mut Commands, time_us: u32, first: u32, buf: &mut [u8]) -> std::io::Result<bool> {
     loop {
-        while let Ok(cmd) = c.rx.try_recv() {
-            let n = encode::<_, 64>(&cmd, buf).map_err(|e| std::io::Error::other(format!("{e:?}")))?;
-            w.write_all(&buf[..n])?;
-            c.sent += 1;
-        }
-        if c.done.load(std::sync::atomic::Ordering::Relaxed) {
+        if !send_commands(w, c, buf)? {
             return Ok(false);
         }
         let last = c.progress.lock().unwrap_or_else(|p| p.into_inner()).unwrap_or(first);
@@ -200,24 +214,52 @@ fn pace(w: &mut UnixStream, c: &mut Commands, time_us: u32, first: u32, buf: &mu
 
 fn send_frames(
     mut w: UnixStream,
-    samples: Vec<Sample>,
+    feed: Feed,
     corrupt_every: Option<u32>,
     sent: &mut Sent,
     mut commands: Option<&mut Commands>,
 ) -> std::io::Result<()> {
     let mut buf = [0u8; max_frame_len(64)];
-    let n_samples = samples.len();
-    let first = samples.first().map(|s| s.0);
-    for (k, (time_us, x, y, theta)) in samples.into_iter().enumerate() {
+    let (n_samples, mut fixed, stream) = match feed {
+        Feed::Fixed(v) => (Some(v.len()), Some(v.into_iter()), None),
+        Feed::Stream(rx) => (None, None, Some(rx)),
+    };
+    let mut first = None;
+    for k in 0.. {
+        let (time_us, x, y, theta) = match (fixed.as_mut(), &stream) {
+            (Some(it), _) => match it.next() {
+                Some(s) => s,
+                None => break,
+            },
+            (None, Some(rx)) => match rx.recv_timeout(Duration::from_millis(20)) {
+                Ok(s) => s,
+                Err(std::sync::mpsc::RecvTimeoutError::Timeout) => {
+                    // Commands wait for no sample; the reader's end stops the stream.
+                    match commands.as_deref_mut() {
+                        Some(c) => {
+                            if send_commands(&mut w, c, &mut buf)? {
+                                continue;
+                            }
+                            return Ok(());
+                        }
+                        None => return Ok(()),
+                    }
+                }
+                Err(_) => return Ok(()),
+            },
+            (None, None) => break,
+        };
+        let first = *first.get_or_insert(time_us);
         if let Some(c) = commands.as_deref_mut() {
-            if !pace(&mut w, c, time_us, first.unwrap_or(time_us), &mut buf)? {
+            if !pace(&mut w, c, time_us, first, &mut buf)? {
                 return Ok(());
             }
         }
         let n = encode::<_, 64>(&ToController::Odometry { time_us, x, y, theta }, &mut buf)
             .map_err(|e| std::io::Error::other(format!("{e:?}")))?;
         let frame = &mut buf[..n];
-        let damage = corrupt_every.is_some_and(|c| c > 0 && (k as u32 + 1).is_multiple_of(c)) && k + 1 < n_samples;
+        let damage = corrupt_every.is_some_and(|c| c > 0 && (k as u32 + 1).is_multiple_of(c))
+            && n_samples.is_none_or(|n| k + 1 < n);
         if damage {
             // One bit inside the frame, never making a delimiter: one bad frame.
             let i = n / 2;
@@ -230,6 +272,9 @@ fn send_frames(
             w.write_all(&[0x00, 0x55, 0x21, 0x7e, 0x00])?;
             sent.garbage += 1;
         }
+    }
+    if stream.is_some() {
+        return Ok(());
     }
     let n = encode::<_, 64>(&ToController::End, &mut buf).map_err(|e| std::io::Error::other(format!("{e:?}")))?;
     w.write_all(&buf[..n])?;
@@ -246,13 +291,19 @@ pub fn link_cmd(a: &LinkArgs) -> Result<String, LabError> {
         Some(p) => Some(std::fs::read(p).map_err(|e| LabError(format!("{}: {e}", p.display())))?),
         None => None,
     };
-    let samples = match (&scenario_bytes, a.odometry_stdin) {
-        (_, true) => stdin_odometry()?,
-        (Some(b), false) => {
+    let samples = match (&scenario_bytes, a.odometry_stdin, a.ros2.ros2_odom) {
+        (_, true, true) => {
+            return Err(LabError("--odometry-stdin and --ros2-odom are two odometries: give one".into()))
+        }
+        (_, false, true) => Vec::new(),
+        (_, true, false) => stdin_odometry()?,
+        (Some(b), false, false) => {
             let s = Scenario::parse(b).map_err(|e| LabError(format!("not a valid scenario: {e}")))?;
             scenario_odometry(&s)
         }
-        (None, false) => return Err(LabError("give --scenario FILE or --odometry-stdin".into())),
+        (None, false, false) => {
+            return Err(LabError("give --scenario FILE, --odometry-stdin or --ros2 --ros2-odom".into()))
+        }
     };
     let sock_path;
     let mut qemu = None;
@@ -293,9 +344,11 @@ pub fn link_cmd(a: &LinkArgs) -> Result<String, LabError> {
         }
     }
     let mut recorder = crate::foxglove::controller::LinkRecorder::new(&mounts);
+    let mut stream = None;
     let (mut ros, commands) = if a.ros2.ros2 {
         let (tx, rx) = std::sync::mpsc::channel();
-        let node = crate::ros2::node::Ros2Node::start(&a.ros2, &mounts, &samples, tx)?;
+        let mut node = crate::ros2::node::Ros2Node::start(&a.ros2, &mounts, &samples, tx)?;
+        stream = node.take_odometry_feed().map(Feed::Stream);
         let wait = Duration::from_secs_f64(a.ros2.ros2_wait_s.clamp(0.0, 3600.0));
         if !wait.is_zero() && !node.wait_for_subscribers(wait) {
             eprintln!("ros2: not every topic had a subscriber within --ros2-wait-s; running without");
@@ -317,7 +370,8 @@ pub fn link_cmd(a: &LinkArgs) -> Result<String, LabError> {
             *p.lock().unwrap_or_else(|p| p.into_inner()) = Some(r.time_us);
         }
     };
-    let result = talk(&sock_path, &mut qemu, deadline, samples, a.corrupt_every, commands, &mut on_message);
+    let feed = stream.unwrap_or(Feed::Fixed(samples));
+    let result = talk(&sock_path, &mut qemu, deadline, feed, a.corrupt_every, commands, &mut on_message);
     let ros2 = ros.take().map(|n| n.finish());
     let firmware_exit = qemu.as_mut().map(|q| wait_or_kill(q, deadline));
     if a.qemu.is_some() {
@@ -360,7 +414,7 @@ fn talk(
     sock: &Path,
     qemu: &mut Option<Child>,
     deadline: Instant,
-    samples: Vec<Sample>,
+    feed: Feed,
     corrupt_every: Option<u32>,
     commands: Option<Commands>,
     on_message: &mut dyn FnMut(&FromController),
@@ -368,7 +422,7 @@ fn talk(
     let stream = connect(sock, qemu, deadline)?;
     let writer = stream.try_clone().map_err(|e| LabError(format!("socket: {e}")))?;
     let done = commands.as_ref().map(|c| c.done.clone());
-    let sender = std::thread::spawn(move || send_all(writer, samples, corrupt_every, commands));
+    let sender = std::thread::spawn(move || send_all(writer, feed, corrupt_every, commands));
     let mut reader = stream;
     reader.set_read_timeout(Some(Duration::from_millis(200))).map_err(|e| LabError(format!("socket: {e}")))?;
     let mut rx = Decoder::<256>::new();

@@ -18,6 +18,45 @@ fn build_firmware() -> std::path::PathBuf {
     board_binary("link")
 }
 
+/// The scenario's odometry composed here in f64 from its increments, on
+/// the controller's clock (the first record at 0), independently of the
+/// lab's own composition: (µs, [x, y, θ unwrapped]).
+fn composed_odometry(s: &Scenario<'_>) -> Vec<(i64, [f64; 3])> {
+    let t0 = s.records().next().unwrap().time_us;
+    let mut x = [0.0f64; 3];
+    s.records()
+        .map(|r| {
+            let u = r.odometry.map(f64::from);
+            let (sn, cs) = x[2].sin_cos();
+            x = [x[0] + cs * u[0] - sn * u[1], x[1] + sn * u[0] + cs * u[1], x[2] + u[2]];
+            (i64::from(r.time_us.wrapping_sub(t0)), x)
+        })
+        .collect()
+}
+
+/// The odometry as the link's JSON lines (`--odometry-stdin`, the peer's `--odom`).
+fn odometry_lines(s: &Scenario<'_>) -> String {
+    composed_odometry(s)
+        .iter()
+        .map(|(t, x)| {
+            format!("{{\"time_us\":{t},\"x\":{},\"y\":{},\"theta\":{}}}\n", x[0], x[1], x[2].sin().atan2(x[2].cos()))
+        })
+        .collect()
+}
+
+/// The position RMSE of the printed readings' poses against the truth, m.
+fn position_rmse(printed: &[u8], truth: &[[f32; 3]]) -> f64 {
+    let poses: Vec<Vec<f64>> = String::from_utf8_lossy(printed)
+        .lines()
+        .filter_map(|l| serde_json::from_str::<serde_json::Value>(l).ok())
+        .filter_map(|v| v.get("Reading").map(|r| f64s(&r["pose"])))
+        .collect();
+    assert_eq!(poses.len(), truth.len());
+    let p2: f64 =
+        poses.iter().zip(truth).map(|(p, t)| (p[0] - f64::from(t[0])).powi(2) + (p[1] - f64::from(t[1])).powi(2)).sum();
+    (p2 / truth.len() as f64).sqrt()
+}
+
 #[test]
 fn poses_over_the_link_track_the_truth_and_every_bad_frame_is_counted() {
     let elf = build_firmware();
@@ -89,20 +128,7 @@ fn odometry_from_stdin_drives_the_loop() {
     let scn = root().join("boards/qemu-mps2-an386/depot.scn");
     let bytes = std::fs::read(&scn).unwrap();
     let s = Scenario::parse(&bytes).unwrap();
-    let t0 = s.records().next().unwrap().time_us;
-    let mut x = [0.0f64; 3];
-    let mut lines = String::new();
-    for r in s.records() {
-        let u = r.odometry.map(f64::from);
-        x = [x[0] + x[2].cos() * u[0] - x[2].sin() * u[1], x[1] + x[2].sin() * u[0] + x[2].cos() * u[1], x[2] + u[2]];
-        lines += &format!(
-            "{{\"time_us\":{},\"x\":{},\"y\":{},\"theta\":{}}}\n",
-            r.time_us - t0,
-            x[0],
-            x[1],
-            x[2].sin().atan2(x[2].cos())
-        );
-    }
+    let lines = odometry_lines(&s);
     let mut child = lab()
         .args(["link", "--odometry-stdin", "--timeout-s", "300", "--qemu"])
         .arg(&elf)
@@ -116,22 +142,8 @@ fn odometry_from_stdin_drives_the_loop() {
     child.stdin.take().unwrap().write_all(lines.as_bytes()).unwrap();
     let o = child.wait_with_output().unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let out = String::from_utf8(o.stdout).unwrap();
     let truth: Vec<[f32; 3]> = s.records().map(|r| r.truth).collect();
-    let poses: Vec<Vec<f64>> = out
-        .lines()
-        .filter_map(|l| serde_json::from_str::<serde_json::Value>(l).ok())
-        .filter_map(|v| {
-            v.get("Reading").map(|r| r["pose"].as_array().unwrap().iter().map(|x| x.as_f64().unwrap()).collect())
-        })
-        .collect();
-    assert_eq!(poses.len(), truth.len());
-    let p2: f64 = poses
-        .iter()
-        .zip(&truth)
-        .map(|(p, t)| (p[0] - f64::from(t[0])).powi(2) + (p[1] - f64::from(t[1])).powi(2))
-        .sum();
-    let rmse = (p2 / truth.len() as f64).sqrt();
+    let rmse = position_rmse(&o.stdout, &truth);
     assert!(rmse <= f64::from(s.header().bound_position_m), "position RMSE {rmse} m");
 }
 
@@ -299,6 +311,27 @@ fn link_beside_ros2_peers(
     common::beside_ros2_peers(&command, peers)
 }
 
+/// The peer's `map → odom` on `/tf`, one per reading, composed with the
+/// odometry (`odo`, composed in the test) at the reading's time, is the
+/// peer's `/amcl_pose`.
+fn check_map_to_odom(peer: &serde_json::Value, link: &[&serde_json::Value], odo: &[(i64, [f64; 3])]) {
+    let (tfs, poses) = (peer["tf"].as_array().unwrap(), peer["poses"].as_array().unwrap());
+    assert_eq!(tfs.len(), link.len(), "one map → odom per reading");
+    let wrap = |a: f64| (a + std::f64::consts::PI).rem_euclid(2.0 * std::f64::consts::PI) - std::f64::consts::PI;
+    for ((t, r), p) in tfs.iter().zip(link).zip(poses) {
+        assert_eq!((t["parent"].as_str(), t["child"].as_str()), (Some("map"), Some("odom")));
+        let tu = r["time_us"].as_i64().unwrap();
+        let o = odo.iter().find(|(t, _)| *t == tu).map(|(_, o)| *o).unwrap_or_else(|| panic!("no record at {tu}"));
+        let m = f64s(&t["pose"]);
+        let (sn, cs) = m[2].sin_cos();
+        let composed = [m[0] + cs * o[0] - sn * o[1], m[1] + sn * o[0] + cs * o[1], m[2] + o[2]];
+        let pose = f64s(&p["pose"]);
+        // The link's odometry is f32: a few µm over tens of metres.
+        assert!((composed[0] - pose[0]).abs() < 1e-3 && (composed[1] - pose[1]).abs() < 1e-3, "{composed:?} {pose:?}");
+        assert!(wrap(composed[2] - pose[2]).abs() < 1e-4);
+    }
+}
+
 fn f64s(v: &serde_json::Value) -> Vec<f64> {
     v.as_array().unwrap().iter().map(|x| x.as_f64().unwrap()).collect()
 }
@@ -381,32 +414,8 @@ fn link_ros2_serves_an_independent_node_as_amcl_would() {
     // map → odom ∘ odometry = the pose, the odometry composed here from the scenario.
     let bytes = std::fs::read(root().join("boards/qemu-mps2-an386/depot.scn")).unwrap();
     let s = Scenario::parse(&bytes).unwrap();
-    let t0 = s.records().next().unwrap().time_us;
-    let mut x = [0.0f64; 3];
-    let odo: Vec<(i64, [f64; 3])> = s
-        .records()
-        .map(|r| {
-            let u = r.odometry.map(f64::from);
-            let (sn, cs) = x[2].sin_cos();
-            x = [x[0] + cs * u[0] - sn * u[1], x[1] + sn * u[0] + cs * u[1], x[2] + u[2]];
-            (i64::from(r.time_us.wrapping_sub(t0)), x)
-        })
-        .collect();
-    let tfs = whole["tf"].as_array().unwrap();
-    assert_eq!(tfs.len(), readings, "one map → odom per reading");
-    let wrap = |a: f64| (a + std::f64::consts::PI).rem_euclid(2.0 * std::f64::consts::PI) - std::f64::consts::PI;
-    for ((t, r), p) in tfs.iter().zip(&link).zip(poses) {
-        assert_eq!((t["parent"].as_str(), t["child"].as_str()), (Some("map"), Some("odom")));
-        let tu = r["time_us"].as_i64().unwrap();
-        let o = odo.iter().find(|(t, _)| *t == tu).map(|(_, o)| *o).unwrap_or_else(|| panic!("no record at {tu}"));
-        let m = f64s(&t["pose"]);
-        let (sn, cs) = m[2].sin_cos();
-        let composed = [m[0] + cs * o[0] - sn * o[1], m[1] + sn * o[0] + cs * o[1], m[2] + o[2]];
-        let pose = f64s(&p["pose"]);
-        // The link's odometry is f32: a few µm over tens of metres.
-        assert!((composed[0] - pose[0]).abs() < 1e-3 && (composed[1] - pose[1]).abs() < 1e-3, "{composed:?} {pose:?}");
-        assert!(wrap(composed[2] - pose[2]).abs() < 1e-4);
-    }
+    let odo = composed_odometry(&s);
+    check_map_to_odom(whole, &link, &odo);
     assert_eq!(whole["tf_static"].as_array().unwrap().len(), 16);
     // Range: one per reading with a range or no echo, per transducer.
     let mut expect = [0u64; 16];
@@ -419,8 +428,12 @@ fn link_ros2_serves_an_independent_node_as_amcl_would() {
     assert_eq!(got, expect.to_vec());
     assert!(expect.iter().sum::<u64>() > 100);
     let cycles: Vec<&serde_json::Value> = printed.iter().filter_map(|v| v.get("Cycle")).collect();
-    let diags = whole["diagnostics"].as_array().unwrap();
+    let all = whole["diagnostics"].as_array().unwrap();
+    let diags: Vec<_> = all.iter().filter(|d| d["name"] == "echoloc: localization").collect();
     assert_eq!(diags.len(), cycles.len());
+    // And the link's own, once: the controller's Hello, the clocks' anchor.
+    assert_eq!(all.iter().filter(|d| d["name"] == "echoloc: link").count(), 1);
+    assert_eq!(all.len(), diags.len() + 1);
     for (d, c) in diags.iter().zip(&cycles) {
         let level = match c["mode"].as_str().unwrap() {
             "Tracking" => 0,
@@ -485,4 +498,58 @@ fn link_ros2_humble_ranges_and_the_global_localization_service() {
     assert_eq!(host["commands_sent"], 1);
     let at = peers[0]["sent"]["global"]["at_pose"].as_u64().unwrap() as usize;
     assert!(link[at..].iter().any(|r| r["mode"] == "Searching"), "no search after the service call");
+}
+
+/// `link --ros2 --ros2-odom` (#50): the odometry comes from `/odom` as a
+/// robot's odometry node publishes it (the peer, stamping the scenario's
+/// odometry, composed here, on the host's clock through the anchor the
+/// link says on `/diagnostics` at the controller's Hello), not from the
+/// scenario. On the first 900 records of the depot run: every sample
+/// reaches the controller on its own clock, to the µs (the first at 0, the
+/// last at the 900th record's time); three bad ones (stamped before the
+/// Hello, in frame `map`, a NaN) are refused with their reasons; the
+/// firmware's poses keep within the scenario's bound of the truth, and
+/// `map → odom` composed with that odometry is the pose.
+#[test]
+fn link_ros2_takes_its_odometry_from_odom() {
+    let elf = build_firmware();
+    let dir = std::env::temp_dir().join(format!("echoloc-ros2-odom-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let bytes = std::fs::read(root().join("boards/qemu-mps2-an386/depot.scn")).unwrap();
+    let whole = Scenario::parse(&bytes).unwrap();
+    let records: Vec<_> = whole.records().take(900).collect();
+    let mounts: Vec<_> = (0..whole.transducers()).map(|i| whole.mount(i).unwrap()).collect();
+    let mut short = Vec::new();
+    echoloc::scenario::write(whole.header(), &mounts, &records, |b| short.extend_from_slice(b)).unwrap();
+    let (scn, odom) = (dir.join("depot-900.scn"), dir.join("odom.jsonl"));
+    std::fs::write(&scn, &short).unwrap();
+    let s = Scenario::parse(&short).unwrap();
+    std::fs::write(&odom, odometry_lines(&s)).unwrap();
+
+    let mut command: Vec<String> = ["link", "--timeout-s", "300", "--ros2-odom", "--qemu"].map(String::from).to_vec();
+    command.extend([elf.to_str().unwrap().into(), "--scenario".into(), scn.to_str().unwrap().into()]);
+    let (o, peers) = common::beside_ros2_peers(&command, &[&["--odom", odom.to_str().unwrap(), "--odom-bad"]]);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    let printed: Vec<serde_json::Value> =
+        String::from_utf8_lossy(&o.stdout).lines().map(|l| serde_json::from_str(l).unwrap()).collect();
+    let host = &printed.last().unwrap()["host"];
+    let odo = composed_odometry(&s);
+    let counts = &host["ros2"]["odometry"];
+    assert_eq!(peers[0]["odom_sent"], 900);
+    assert_eq!(peers[0]["odom_bad_sent"], 3);
+    assert_eq!(counts["taken"], 900, "{host} {stderr}");
+    assert_eq!(host["odometry_sent"], 900);
+    assert_eq!(counts["first_us"], 0);
+    assert_eq!(counts["last_us"].as_i64(), Some(odo[899].0));
+    assert_eq!(counts["refused"], 3, "{stderr}");
+    assert!(stderr.contains("before the controller's clock began"), "{stderr}");
+    assert!(stderr.contains("frame \"map\""), "{stderr}");
+    assert!(stderr.contains("a position that is not finite"), "{stderr}");
+    assert!(host["firmware_console"].as_array().unwrap().iter().all(|l| !l.as_str().unwrap().contains("FAIL")));
+    let truth: Vec<[f32; 3]> = s.records().map(|r| r.truth).collect();
+    let rmse = position_rmse(&o.stdout, &truth);
+    assert!(rmse <= f64::from(s.header().bound_position_m), "position RMSE {rmse} m");
+    let link: Vec<&serde_json::Value> = printed.iter().filter_map(|v| v.get("Reading")).collect();
+    check_map_to_odom(&peers[0], &link, &odo);
+    eprintln!("ros2 /odom: 900 samples taken, 3 refused, position RMSE {rmse:.4} m");
 }

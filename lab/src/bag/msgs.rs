@@ -245,20 +245,20 @@ pub struct PoseWithCovariance {
     pub covariance: Covariance,
 }
 
-#[derive(Clone, Debug, Serialize, PartialEq)]
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 pub struct Twist {
     pub linear: Vector3,
     pub angular: Vector3,
 }
 
-#[derive(Clone, Debug, Serialize, PartialEq)]
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 pub struct TwistWithCovariance {
     pub twist: Twist,
     pub covariance: Covariance,
 }
 
-/// `nav_msgs/msg/Odometry`, whole.
-#[derive(Clone, Debug, Serialize, PartialEq)]
+/// `nav_msgs/msg/Odometry`, whole (what a ROS 2 node takes from `/odom`).
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 pub struct OdometryMsg {
     pub header: Header,
     pub child_frame_id: String,

@@ -47,12 +47,16 @@ pub struct Bridge {
     mounts: Vec<Mount>,
     /// The odometry sent, controller µs unwrapped, ascending.
     odometry: Vec<(u64, [f64; 3])>,
+    /// The odometry's own unwrapping of the controller's clock.
+    odometry_epoch: (u64, Option<u32>),
     /// (host ns, controller µs unwrapped) at the anchor.
     anchor: Option<(u64, u64)>,
     epoch: u64,
     last_us: Option<u32>,
     /// The last reading's host stamp, ns, for the cycle after it.
     last_ns: u64,
+    /// The robot's base frame, the mounts' parent.
+    base_frame: String,
 }
 
 /// `WireMode` as the diagnostic's level: tracking OK, searching WARN, lost ERROR.
@@ -118,10 +122,10 @@ pub fn range_message(distro: Distro, ns: u64, k: usize, range: f32) -> RangeOut 
     }
 }
 
-/// The ring's mounts as `base_link → sonar_<k>` at `ns`, for `/tf_static`.
-pub fn static_mounts(ns: u64, mounts: &[Mount]) -> TfMessage {
+/// The ring's mounts as `base → sonar_<k>` at `ns`, for `/tf_static`.
+pub fn static_mounts(ns: u64, base: &str, mounts: &[Mount]) -> TfMessage {
     let transforms =
-        mounts.iter().enumerate().map(|(k, m)| transform(ns, BASE_FRAME, &sonar_frame(k), mount_pose(m))).collect();
+        mounts.iter().enumerate().map(|(k, m)| transform(ns, base, &sonar_frame(k), mount_pose(m))).collect();
     TfMessage { transforms }
 }
 
@@ -168,20 +172,75 @@ pub fn mode_diagnostics(
     }
 }
 
+/// `/diagnostics`' message when the controller says `Hello`, stamped at
+/// the host's time it came: the clocks' anchor (docs/ros2.md), which a
+/// node stamping its own messages for the controller (`/odom`) can read.
+pub fn hello_diagnostics(ns: u64, protocol: u8, transducers: u8, map_crc: u32, time_us: u32) -> DiagnosticArray {
+    let kv = |k: &str, v: String| KeyValue { key: k.into(), value: v };
+    DiagnosticArray {
+        header: header(ns, ""),
+        status: vec![DiagnosticStatus {
+            level: 0,
+            name: LINK_STATUS.into(),
+            message: format!(
+                "the controller said hello: protocol {protocol}, {transducers} transducers, map CRC {map_crc:08x}"
+            ),
+            hardware_id: "sonar controller".into(),
+            values: vec![
+                kv("protocol", protocol.to_string()),
+                kv("transducers", transducers.to_string()),
+                kv("map crc", format!("{map_crc:08x}")),
+                kv("controller time us", time_us.to_string()),
+            ],
+        }],
+    }
+}
+
+/// The name of the link's own status (the `Hello`), beside the localizer's.
+pub const LINK_STATUS: &str = "echoloc: link";
+
 impl Bridge {
     /// For a controller with ring `mounts`, fed `odometry` (in the order sent).
     pub fn new(distro: Distro, mounts: &[Mount], odometry: &[Sample]) -> Self {
-        let (mut epoch, mut last) = (0, None);
-        let odometry = odometry
-            .iter()
-            .map(|&(t, x, y, th)| (unwrap_us(&mut epoch, &mut last, t), [x, y, th].map(f64::from)))
-            .collect();
-        Self { distro, mounts: mounts.to_vec(), odometry, anchor: None, epoch: 0, last_us: None, last_ns: 0 }
+        let mut b = Self {
+            distro,
+            mounts: mounts.to_vec(),
+            odometry: Vec::with_capacity(odometry.len()),
+            odometry_epoch: (0, None),
+            anchor: None,
+            epoch: 0,
+            last_us: None,
+            last_ns: 0,
+            base_frame: BASE_FRAME.into(),
+        };
+        for &s in odometry {
+            b.add_odometry(s);
+        }
+        b
     }
 
-    /// The mounts as `base_link → sonar_<k>`, for `/tf_static`.
+    /// One more odometry sample sent to the controller (after those before it).
+    pub fn add_odometry(&mut self, (t, x, y, th): Sample) {
+        let (epoch, last) = &mut self.odometry_epoch;
+        let t = unwrap_us(epoch, last, t);
+        self.odometry.push((t, [x, y, th].map(f64::from)));
+    }
+
+    /// (host ns, controller µs unwrapped) where the two clocks were tied:
+    /// the `Hello`, or a late joiner's first reading.
+    pub fn anchor(&self) -> Option<(u64, u64)> {
+        self.anchor
+    }
+
+    /// The mounts hang off `base` rather than `base_link`.
+    pub fn with_base_frame(mut self, base: &str) -> Self {
+        self.base_frame = base.trim_start_matches('/').into();
+        self
+    }
+
+    /// The mounts as `base_link → sonar_<k>` (or the base given), for `/tf_static`.
     pub fn static_tf(&self, host_ns: u64) -> TfMessage {
-        static_mounts(host_ns, &self.mounts)
+        static_mounts(host_ns, &self.base_frame, &self.mounts)
     }
 
     /// The odometry pose at controller time `t` (µs, unwrapped): between the
@@ -203,12 +262,12 @@ impl Bridge {
     /// The messages for `m`, which arrived at host time `host_ns`.
     pub fn push(&mut self, m: &FromController, host_ns: u64) -> Vec<Out> {
         match m {
-            FromController::Hello { time_us, .. } => {
+            FromController::Hello { protocol, transducers, map_crc, time_us } => {
                 self.last_us = None;
                 self.epoch = 0;
                 let t = unwrap_us(&mut self.epoch, &mut self.last_us, *time_us);
                 self.anchor = Some((host_ns, t));
-                Vec::new()
+                vec![Out::Diagnostics(hello_diagnostics(host_ns, *protocol, *transducers, *map_crc, *time_us))]
             }
             FromController::Reading(r) => self.reading(r, host_ns),
             FromController::Cycle(c) => vec![Out::Diagnostics(self.diagnostics(c))],
@@ -217,7 +276,7 @@ impl Bridge {
     }
 
     /// Controller time `t` (unwrapped µs) on the host's clock, ns.
-    fn host_ns(&self, t: u64) -> u64 {
+    pub fn host_ns(&self, t: u64) -> u64 {
         let (h, c) = self.anchor.unwrap_or((0, 0));
         let dt = i128::from(t) - i128::from(c);
         (i128::from(h) + dt * 1000).clamp(0, i128::from(u64::MAX)) as u64
@@ -316,8 +375,18 @@ mod tests {
     #[test]
     fn stamps_follow_the_hello_anchor_across_the_wrap() {
         let mut b = Bridge::new(Distro::Jazzy, &[], &[]);
-        let hello = FromController::Hello { protocol: 2, transducers: 16, map_crc: 0, time_us: u32::MAX - 999_999 };
-        assert!(b.push(&hello, 5_000_000_000).is_empty());
+        let hello =
+            FromController::Hello { protocol: 2, transducers: 16, map_crc: 0xBEEF, time_us: u32::MAX - 999_999 };
+        // The anchor, said on /diagnostics at the host's time it came.
+        match &b.push(&hello, 5_000_000_000)[..] {
+            [Out::Diagnostics(d)] => {
+                assert_eq!(d.header.stamp.nanos(), 5_000_000_000);
+                assert_eq!(d.status[0].name, LINK_STATUS);
+                let v = &d.status[0].values;
+                assert_eq!((v[2].value.as_str(), v[3].value.as_str()), ("0000beef", "4293967296"));
+            }
+            o => panic!("{o:?}"),
+        }
         let stamp = |o: &[Out]| match &o[0] {
             Out::Pose(p) => p.header.stamp.nanos(),
             o => panic!("{o:?}"),

@@ -7,12 +7,14 @@
 //!
 //! - [`msgs`]: the messages beyond a bag's, and the distribution's layouts;
 //! - [`bridge`]: the link's messages to those (no DDS: tested alone);
+//! - [`odom`]: `/odom` in, its stamps mapped back onto the controller's clock (no DDS);
 //! - [`node`]: the DDS node (ros2-client on RustDDS);
 //! - [`replay`]: `replay --ros2`, a replayed run published as the link would, with its particles.
 
 pub mod bridge;
 pub mod msgs;
 pub mod node;
+pub mod odom;
 pub mod replay;
 
 use clap::{Args, ValueEnum};
@@ -68,6 +70,16 @@ pub struct Ros2Args {
     /// reading (tests; a robot does not wait).
     #[arg(long = "ros2-wait-s", default_value_t = 0.0, requires = "ros2")]
     pub ros2_wait_s: f64,
+    /// Take the odometry from the robot's /odom (nav_msgs/Odometry, reliable) instead of --scenario's
+    /// or stdin's; its stamps are mapped onto the controller's clock through the Hello (docs/ros2.md).
+    #[arg(long = "ros2-odom", requires = "ros2")]
+    pub ros2_odom: bool,
+    /// The odometry's topic.
+    #[arg(long = "ros2-odom-topic", default_value = "/odom", requires = "ros2_odom")]
+    pub ros2_odom_topic: String,
+    /// The robot's base frame: the mounts' parent on /tf_static and /odom's child (TurtleBots: base_footprint).
+    #[arg(long = "ros2-base-frame", default_value = "base_link", requires = "ros2")]
+    pub ros2_base_frame: String,
     /// Seconds the node stays up after the run, so reliable readers get the last samples.
     #[arg(long = "ros2-linger-s", default_value_t = 1.0, requires = "ros2")]
     pub ros2_linger_s: f64,

@@ -1,10 +1,11 @@
 //! The DDS side of `link --ros2`: a ROS 2 node (ros2-client on RustDDS, no
 //! ROS installed) that publishes what [`super::bridge`] makes and takes
 //! amcl's inputs: `/initialpose` and the `reinitialize_global_localization`
-//! service, turned into link commands for the controller.
+//! service, turned into link commands for the controller, and with
+//! `--ros2-odom` the robot's `/odom`, turned into the link's odometry.
 
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::mpsc::Sender;
+use std::sync::mpsc::{Receiver, Sender};
 use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 use std::time::{Duration, SystemTime, UNIX_EPOCH};
@@ -20,12 +21,14 @@ use rustdds::DomainParticipantBuilder;
 
 use super::bridge::{initial_pose_command, Bridge, Out, Sample};
 use super::msgs::{DiagnosticArray, Empty, PoseArray, PoseWithCovarianceStamped, RangeOut};
+use super::odom::{Anchor, OdomClock, OdomCounts};
 use super::{Ros2Args, ServiceMappingArg};
-use crate::bag::msgs::TfMessage;
+use crate::bag::msgs::{OdometryMsg, TfMessage};
 use crate::map::LabError;
 
 impl Message for PoseWithCovarianceStamped {}
 impl Message for Empty {}
+impl Message for OdometryMsg {}
 
 /// What the node did, for the link's summary.
 #[derive(Clone, Debug, Default, serde::Serialize)]
@@ -39,6 +42,8 @@ pub struct Ros2Counts {
     pub initial_poses_refused: u32,
     pub global_localizations: u32,
     pub publish_errors: u32,
+    /// `/odom` taken and refused (`--ros2-odom`).
+    pub odometry: Option<OdomCounts>,
 }
 
 /// The node, its publishers, and the thread that takes its inputs.
@@ -57,6 +62,12 @@ pub struct Ros2Node {
     inputs: Option<JoinHandle<()>>,
     linger: Duration,
     pose_topic: String,
+    /// The clocks' anchor, for the `/odom` taker.
+    anchor: Arc<Mutex<Option<Anchor>>>,
+    /// The `/odom` samples sent on, for `map → odom` (`--ros2-odom`).
+    odometry_sent: Option<Receiver<Sample>>,
+    /// The same samples for the link to send, until it takes them.
+    odometry_feed: Option<Receiver<Sample>>,
 }
 
 /// Transducer `k`'s Range topic, `/sonar_<k>`, named as its frame: a ROS 2
@@ -159,16 +170,61 @@ impl Ros2Node {
             )
             .map_err(err("the global localization service"))?;
 
-        let bridge = Bridge::new(args.ros_distro, mounts, odometry);
+        // /odom as the robot's odometry nodes publish it (diff_drive_controller,
+        // Gazebo: reliable); deep, so that a burst is not lost between polls.
+        let odom = if args.ros2_odom {
+            let t = topic(&mut node, &args.ros2_odom_topic, "nav_msgs", "Odometry", &stream(1000))?;
+            Some(node.create_subscription::<OdometryMsg>(&t, None).map_err(err("/odom"))?)
+        } else {
+            None
+        };
+        let bridge = Bridge::new(args.ros_distro, mounts, odometry).with_base_frame(&args.ros2_base_frame);
         if let Err(e) = tf_static.publish(bridge.static_tf(now_ns())) {
             return Err(LabError(format!("--ros2: /tf_static: {e:?}")));
         }
         let counts = Arc::new(Mutex::new(Ros2Counts::default()));
         let stop = Arc::new(AtomicBool::new(false));
-        let (c, s, wide) = (counts.clone(), stop.clone(), args.wide());
+        let anchor = Arc::new(Mutex::new(None));
+        let (sent_tx, sent_rx) = std::sync::mpsc::channel();
+        let (feed_tx, feed_rx) = std::sync::mpsc::channel();
+        let mut clock = odom.as_ref().map(|_| OdomClock::new(&args.ros2_base_frame));
+        let (c, s, wide, a) = (counts.clone(), stop.clone(), args.wide(), anchor.clone());
         let inputs = std::thread::spawn(move || {
+            let mut tied = None;
             // Polled: a few ms late is nothing beside a ring cycle.
             while !s.load(Ordering::Relaxed) {
+                if let (Some(odom), Some(clock)) = (&odom, clock.as_mut()) {
+                    let mut refusals = Vec::new();
+                    while let Ok(Some((m, _))) = odom.take() {
+                        if let Err(why) = clock.push(&m) {
+                            refusals.push(why);
+                        }
+                    }
+                    let anchor = *a.lock().unwrap_or_else(|p| p.into_inner());
+                    if tied.is_some() && anchor != tied {
+                        // A new Hello: the controller's clock began again.
+                        clock.restart();
+                    }
+                    tied = anchor;
+                    for r in clock.drain(anchor) {
+                        match r {
+                            // The bridge first: the controller's reading at this time comes after.
+                            Ok(sample) => {
+                                let _ = sent_tx.send(sample);
+                                let _ = feed_tx.send(sample);
+                            }
+                            Err(why) => refusals.push(why),
+                        }
+                    }
+                    let n = clock.counts.refused as usize;
+                    for (k, why) in refusals.iter().enumerate() {
+                        let k = n - refusals.len() + k + 1;
+                        if k <= 10 || k.is_multiple_of(1000) {
+                            eprintln!("ros2: /odom refused ({k} so far): {why}");
+                        }
+                    }
+                    c.lock().unwrap_or_else(|p| p.into_inner()).odometry = Some(clock.counts.clone());
+                }
                 while let Ok(Some((m, _))) = initial.take() {
                     let mut c = c.lock().unwrap_or_else(|p| p.into_inner());
                     match initial_pose_command(&m, wide) {
@@ -206,7 +262,15 @@ impl Ros2Node {
             inputs: Some(inputs),
             linger: Duration::from_secs_f64(args.ros2_linger_s.max(0.0)),
             pose_topic: args.ros2_pose_topic.clone(),
+            anchor,
+            odometry_sent: args.ros2_odom.then_some(sent_rx),
+            odometry_feed: args.ros2_odom.then_some(feed_rx),
         })
+    }
+
+    /// With `--ros2-odom`: the odometry to send the controller, on its clock, as it comes.
+    pub fn take_odometry_feed(&mut self) -> Option<Receiver<Sample>> {
+        self.odometry_feed.take()
     }
 
     /// Waits up to `timeout` until every topic the node publishes per
@@ -231,7 +295,16 @@ impl Ros2Node {
 
     /// Publishes what one message from the controller says.
     pub fn push(&mut self, m: &FromController) {
-        for o in self.bridge.push(m, now_ns()) {
+        if let Some(rx) = &self.odometry_sent {
+            for s in rx.try_iter() {
+                self.bridge.add_odometry(s);
+            }
+        }
+        let out = self.bridge.push(m, now_ns());
+        if matches!(m, FromController::Hello { .. }) || self.anchor.lock().is_ok_and(|a| a.is_none()) {
+            *self.anchor.lock().unwrap_or_else(|p| p.into_inner()) = self.bridge.anchor();
+        }
+        for o in out {
             self.publish(o);
         }
     }
