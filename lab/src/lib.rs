@@ -87,5 +87,7 @@ pub mod run_input;
 pub mod scenario;
 #[cfg(feature = "tool")]
 pub mod simulate;
+#[cfg(feature = "tool")]
+pub mod simulate_cmd;
 
 pub use error::LabError;

@@ -5,7 +5,7 @@
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
-use echoloc_lab::{bag, bench, board, credence, link, map, predict, replay, scenario, simulate, LabError};
+use echoloc_lab::{bag, bench, board, credence, link, map, predict, replay, scenario, simulate_cmd, LabError};
 
 #[derive(Parser)]
 #[command(name = "echoloc-lab", version, about = "echoloc's lab tool: maps, windows, prediction, credence")]
@@ -26,7 +26,7 @@ enum Cmd {
     /// Credence data: run the physical sonar model as the paper's experiment, one CSV per day.
     Synth(credence::SynthArgs),
     /// Self-referencing in a simulated world (a route, odometry, a physical sonar), or on a lidar run's real geometry (--from-scans): verdicts, threshold method and EKF.
-    Simulate(Box<simulate::SimulateArgs>),
+    Simulate(Box<simulate_cmd::SimulateArgs>),
     /// A robot's log (CSV, docs/log.md) or ROS 2 bag (docs/bags.md) through prediction, verdicts, the threshold method and the EKF.
     Replay(Box<replay::ReplayArgs>),
     /// Logs: a ROS 2 bag written as the plain CSV log, or a log as a ROS 2 bag (docs/log.md, docs/bags.md).
@@ -80,7 +80,7 @@ fn run(cmd: Cmd) -> Result<String, LabError> {
         Cmd::Window(a) => predict::window_cmd(&a),
         Cmd::Predict(a) => predict::predict_cmd(&a),
         Cmd::Synth(a) => credence::synth_cmd(&a).map_err(|e| LabError(e.to_string())),
-        Cmd::Simulate(a) => simulate::simulate_cmd(&a),
+        Cmd::Simulate(a) => simulate_cmd::simulate_cmd(&a),
         Cmd::Replay(a) => replay::replay_cmd(&a),
         Cmd::Log(a) => bag::cli::log_cmd(&a),
         Cmd::Scenario(a) => scenario::run(a),

@@ -1,5 +1,5 @@
 //! The ROS 2 messages a sonar or lidar bag carries, as far as echoloc reads them,
-//! and those it writes (into bags, and as a ROS 2 node: `crate::ros2`),
+//! and those it writes (into bags, and as the ROS 2 node of `link --ros2`),
 //! decoded from and encoded to CDR (the `cdr` message encoding of rosbag2) by the
 //! `cdr-encoding` crate over serde.
 //!
