@@ -182,7 +182,8 @@ def check_clouds(messages, trace_path, expect):
     search from no pose, before the first cycle's end), then the cycles that
     ended searching or lost with particles, thinned to one per 0.25 s, each
     cloud as big as the cycle's particles; /hypotheses only at searching
-    cycles' ends."""
+    cycles' ends, the best of the place test's places leading by the
+    cycle's lead."""
     import csv
     problems = []
     rows = list(csv.DictReader(open(trace_path)))
@@ -211,11 +212,21 @@ def check_clouds(messages, trace_path, expect):
     hyp = messages.get("/hypotheses", [])
     if hyp:
         expect["/hypotheses"] = len(hyp)
+    lead = {round(float(r["time_s"]), 6): float(r["lead_nats"]) for r in rows if r["lead_nats"]}
     for m in hyp:
         for e in m["entities"]:
             t = round(e["timestamp"]["sec"] + e["timestamp"]["nsec"] * 1e-9, 6)
             if t not in searching:
                 problems.append(f"/hypotheses: {e['id']} at {t} s, a cycle that did not end searching")
+                return problems
+        # The place test's living places: the best one's smallest lead is
+        # the cycle's lead in the trace (each drawn to 0.1 nats).
+        places = [e for e in m["entities"] if e["id"].startswith("hypothesis/place/")]
+        if places:
+            t = round(places[0]["timestamp"]["sec"] + places[0]["timestamp"]["nsec"] * 1e-9, 6)
+            best = max(float({kv["key"]: kv["value"] for kv in e["metadata"]}["smallest_lead_nats"]) for e in places)
+            if t not in lead or abs(best - lead[t]) > 0.06:
+                problems.append(f"/hypotheses: the best place leads by {best} at {t} s, the trace says {lead.get(t)}")
                 return problems
     return problems
 

@@ -68,6 +68,9 @@ fn every_message_kind_round_trips() {
             mode: WireMode::Searching,
             particles: 1024,
             handoff: false,
+            hypotheses: 5,
+            lead: 37.25,
+            behind: 0.5,
         }),
         FromController::Status {
             rx: RxCounts { ok: 5, crc: 1, ..RxCounts::default() },
@@ -91,6 +94,43 @@ fn every_message_kind_round_trips() {
     }
     assert_eq!(rx.counts().ok, 8);
     assert_eq!(rx.counts().dropped(), 0);
+}
+
+/// The largest a cycle's report can be (every count at its widest varint)
+/// fits the controller's send buffer (`link::port::TX_RAW`), with the
+/// largest reading's worst case beside it: a `send` never fails for size.
+#[test]
+fn the_widest_cycle_and_reading_fit_the_controllers_send_buffer() {
+    use echoloc::link::port::TX_RAW;
+    let cycle = FromController::Cycle(CycleReport {
+        cycle: u32::MAX,
+        verdicts: [u16::MAX; 6],
+        gate: [u16::MAX; 2],
+        mode: WireMode::Searching,
+        particles: u16::MAX,
+        handoff: true,
+        hypotheses: u8::MAX,
+        lead: f32::MAX,
+        behind: f32::MIN,
+    });
+    let reading = FromController::Reading(ReadingReport {
+        time_us: u32::MAX,
+        cycle: u32::MAX,
+        transducer: u8::MAX,
+        outcome: WireOutcome::Unconfirmed(u32::MAX),
+        predicted_mm: Some(u32::MAX),
+        kappa: 1.0,
+        verdict: WireVerdict::Confirmed,
+        update: WireUpdate::Accepted,
+        pose: [f32::MAX; 3],
+        covariance: [f32::MAX; 6],
+        mode: WireMode::Lost,
+    });
+    for m in [cycle, reading] {
+        let mut out = [0u8; max_frame_len(TX_RAW)];
+        let n = encode::<_, TX_RAW>(&m, &mut out).unwrap_or_else(|e| panic!("{m:?}: {e:?}"));
+        assert!(n <= max_frame_len(TX_RAW));
+    }
 }
 
 #[test]

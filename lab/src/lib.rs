@@ -63,6 +63,7 @@ pub mod bag;
 pub mod bench;
 #[cfg(feature = "tool")]
 pub mod board;
+pub mod clock;
 pub mod credence;
 pub mod error;
 pub mod figure;

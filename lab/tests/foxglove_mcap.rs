@@ -185,6 +185,64 @@ fn a_search_records_its_particles_and_none_outside_the_building() {
     assert!(check_with(&out, &v, &["--trace", s(&bad)]).unwrap_err().contains("/particles: a cloud of"));
 }
 
+/// With the place test (#48 item 4's reporting), from no pose on the two
+/// rooms: `/hypotheses` draws the living places of every searching cycle
+/// that had some, the best one leading by the trace's lead of that cycle
+/// (the reader checks; with one cycle's lead changed it refuses); the JSON
+/// says at each hand-off the places alive and the lead it handed off on, at
+/// least the test's bound and the trace's lead at that cycle.
+#[test]
+fn the_place_tests_places_are_drawn_and_each_hand_off_says_its_standing() {
+    let (out, trace) = (tmp("fox", "places.mcap"), tmp("fox", "places.csv"));
+    let map = root().join("lab/tests/data/two-rooms.geojson");
+    let v = run_json(&[
+        "simulate",
+        "--json",
+        "--map",
+        s(&map),
+        "--seed",
+        "2",
+        "--distance-m",
+        "30",
+        "--start",
+        "unknown",
+        "--place-test",
+        "150",
+        "--mcap",
+        s(&out),
+        "--trace",
+        s(&trace),
+    ]);
+    check_with(&out, &v, &["--trace", s(&trace)]).unwrap();
+    let l = &v["localization"];
+    let standing = l["handoff_standing"].as_array().unwrap();
+    assert_eq!(standing.len() as u64, l["handoffs"].as_u64().unwrap());
+    assert!(!standing.is_empty(), "{l}");
+    let text = std::fs::read_to_string(&trace).unwrap();
+    let header: Vec<&str> = text.lines().next().unwrap().split(',').collect();
+    let col = |h: &str| header.iter().position(|x| *x == h).unwrap();
+    let rows: Vec<Vec<&str>> = text.lines().skip(1).map(|r| r.split(',').collect()).collect();
+    for h in standing {
+        assert!(h["places_alive"].as_u64().unwrap() >= 1, "{h}");
+        let lead = h["lead_nats"].as_f64().unwrap();
+        assert!(lead >= 150.0, "handed off below the bound: {h}");
+        let t = h["time_s"].as_f64().unwrap();
+        let row = rows.iter().find(|r| (r[col("time_s")].parse::<f64>().unwrap() - t).abs() < 1e-4).unwrap();
+        // The trace writes it to 0.1 nats.
+        assert!((row[col("lead_nats")].parse::<f64>().unwrap() - lead).abs() <= 0.05 + 1e-9, "{h} {row:?}");
+    }
+    // Tamper with one searching cycle's lead: the reader finds it.
+    let mut lines: Vec<String> = text.lines().map(String::from).collect();
+    let k = lines.iter().position(|r| r.contains(",searching,")).unwrap() + 3;
+    let mut cells: Vec<String> = lines[k].split(',').map(String::from).collect();
+    assert_eq!(cells[col("mode")], "searching");
+    cells[col("lead_nats")] = (cells[col("lead_nats")].parse::<f64>().unwrap() + 5.0).to_string();
+    lines[k] = cells.join(",");
+    let bad = tmp("fox", "places-bad.csv");
+    std::fs::write(&bad, lines.join("\n") + "\n").unwrap();
+    assert!(check_with(&out, &v, &["--trace", s(&bad)]).unwrap_err().contains("/hypotheses: the best place leads by"));
+}
+
 #[test]
 fn a_replayed_log_reads_back_and_a_bad_path_writes_nothing() {
     let out = tmp("fox", "hand.mcap");

@@ -342,11 +342,13 @@ fn f64s(v: &serde_json::Value) -> Vec<f64> {
 /// lines); `map → odom` on `/tf` composed with the odometry (composed here
 /// from the scenario's increments) is that pose; `/tf_static` has the 16
 /// mounts; each transducer's Range count is the link's readings with a range
-/// or no echo; `/diagnostics` one per ring cycle. An `/initialpose` 2 m off
-/// with σ 2.5 m makes the controller search around it, then track near the
-/// truth; two malformed ones (NaN, frame `odom`) are refused and nothing is
-/// sent. A peer that leaves after 300 poses and one that joins 3 s late
-/// change nothing: the link still sent every pose, and the late one gets
+/// or no echo; `/diagnostics` one per ring cycle and the link's at the
+/// Hello. An `/initialpose` 2 m off with σ 2.5 m makes the controller
+/// search around it, and it tracks no wrong place after (it ends tracking
+/// near the truth or still searching: whether the search finds itself
+/// before the run ends depends on where the command lands); two malformed
+/// ones (NaN, frame `odom`) are refused and nothing is sent. A peer that
+/// leaves after 300 poses and one that joins 3 s late change nothing: the link still sent every pose, and the late one gets
 /// the mounts and the last pose (transient local).
 /// (The late one joins when the first has seen 1 300 poses: it marks a file.)
 #[test]
@@ -449,20 +451,44 @@ fn link_ros2_serves_an_independent_node_as_amcl_would() {
     assert_eq!(host["commands_sent"], 1);
     assert!(stderr.contains("/initialpose refused: a number that is not finite"), "{stderr}");
     assert!(stderr.contains("/initialpose refused: frame \"odom\""), "{stderr}");
-    // Searching around it after it was sent, then tracking near the truth at the end.
+    // Searching around it after it was sent. Whether the search then finds
+    // itself before the 40 m scenario ends is the localizer's, not the
+    // link's: from a search begun at readings 100–520 it did on 71 of 141
+    // (`cargo run --release -p echoloc-lab --example restart_probe -- 100
+    // 520 3`), so where the command lands decides it. What must hold
+    // wherever it lands: the controller never tracks a wrong place after it
+    // (the probe's worst, over those 141: 0.14 m), and it ends tracking
+    // near the truth or still searching.
     let sent_at = whole["sent"]["initial"]["at_pose"].as_u64().unwrap() as usize;
     let truth: Vec<[f32; 3]> = s.records().map(|r| r.truth).collect();
     let searched = link[sent_at..].iter().position(|r| r["mode"] == "Searching").expect("a search after /initialpose");
     assert!(searched < 200, "the search began {searched} readings after /initialpose was sent");
+    let error_at = |i: usize| {
+        let p = f64s(&link[i]["pose"]);
+        ((p[0] - f64::from(truth[i][0])).powi(2) + (p[1] - f64::from(truth[i][1])).powi(2)).sqrt()
+    };
+    // The modes as runs (first reading, mode, error there), to say what happened.
+    let mut runs = Vec::new();
+    for (i, r) in link.iter().enumerate() {
+        if i == 0 || r["mode"] != link[i - 1]["mode"] {
+            runs.push(format!("{i} {} {:.2} m", r["mode"].as_str().unwrap(), error_at(i)));
+        }
+    }
+    let began = sent_at + searched;
+    let worst = (began..link.len()).filter(|&i| link[i]["mode"] == "Tracking").map(error_at).fold(0.0, f64::max);
+    assert!(worst < 0.5, "tracked {worst} m off after the search; modes: {runs:?}");
     let end = link.len() - 1;
-    let e = f64s(&link[end]["pose"]);
-    let err = ((e[0] - f64::from(truth[end][0])).powi(2) + (e[1] - f64::from(truth[end][1])).powi(2)).sqrt();
-    assert_eq!(link[end]["mode"], "Tracking");
-    assert!(err < 0.3, "ends {err} m from the truth");
+    let err = error_at(end);
+    match link[end]["mode"].as_str() {
+        Some("Tracking") => assert!(err < 0.3, "ends tracking {err} m from the truth; modes: {runs:?}"),
+        Some("Searching") => {}
+        m => panic!("ends {m:?}; modes: {runs:?}"),
+    }
     eprintln!(
-        "ros2: {} poses, search {} readings after /initialpose, ends {err:.3} m off; leaving peer {}, late {}",
+        "ros2: {} poses, search {} readings after /initialpose, ends {} {err:.3} m off; leaving peer {}, late {}",
         poses.len(),
         searched,
+        link[end]["mode"],
         peers[1]["poses"].as_array().unwrap().len(),
         peers[2]["poses"].as_array().unwrap().len()
     );

@@ -51,11 +51,11 @@ fn every_published_message_is_byte_identical_to_rosbags_for_each_distro() {
         let mut b = Bridge::new(distro, &mounts, &odometry);
         let tf = b.static_tf(1_700_000_000_123_456_789);
         push("tf2_msgs/msg/TFMessage", distro, serde_json::to_value(&tf).unwrap(), encode(&tf).unwrap());
-        b.push(
-            &FromController::Hello { protocol: 2, transducers: 3, map_crc: 7, time_us: 0 },
+        // The Hello: the link's own status on /diagnostics, the clocks' anchor.
+        let mut outs = b.push(
+            &FromController::Hello { protocol: 3, transducers: 3, map_crc: 7, time_us: 0 },
             1_700_000_000_000_000_000,
         );
-        let mut outs = Vec::new();
         outs.extend(b.push(&reading(250_000, 1, WireOutcome::Range(1734), WireMode::Tracking), 0));
         outs.extend(b.push(&reading(300_000, 2, WireOutcome::NoEcho, WireMode::Searching), 0));
         let cycle = CycleReport {
@@ -65,6 +65,9 @@ fn every_published_message_is_byte_identical_to_rosbags_for_each_distro() {
             mode: WireMode::Searching,
             particles: 1024,
             handoff: false,
+            hypotheses: 5,
+            lead: 37.25,
+            behind: 0.5,
         };
         outs.extend(b.push(&FromController::Cycle(cycle), 0));
         // A replay's particles (`replay --ros2`; the link carries none).
@@ -84,7 +87,7 @@ fn every_published_message_is_byte_identical_to_rosbags_for_each_distro() {
         for ty in ["geometry_msgs/msg/PoseWithCovarianceStamped", "tf2_msgs/msg/TFMessage", "sensor_msgs/msg/Range"] {
             assert_eq!(kinds.iter().filter(|k| **k == ty).count(), 2, "{ty}: {kinds:?}");
         }
-        assert!(kinds.contains(&"diagnostic_msgs/msg/DiagnosticArray"));
+        assert_eq!(kinds.iter().filter(|k| **k == "diagnostic_msgs/msg/DiagnosticArray").count(), 2, "{kinds:?}");
         // What /initialpose carries, decoded by the node as it encodes /amcl_pose.
         let initial = PoseWithCovarianceStamped {
             header: echoloc_lab::bag::msgs::header(42, "map"),
@@ -113,5 +116,5 @@ fn every_published_message_is_byte_identical_to_rosbags_for_each_distro() {
     assert!(o.status.success(), "ros2-golden: {out} {}", String::from_utf8_lossy(&o.stderr));
     let v: serde_json::Value = serde_json::from_str(&out).unwrap();
     assert_eq!(v["checked"].as_u64().unwrap() as usize, lines.len());
-    assert_eq!(lines.len(), 3 * 10);
+    assert_eq!(lines.len(), 3 * 11);
 }

@@ -10,8 +10,9 @@ use crate::localize::Mode;
 use crate::referencing::{Update, Verdict};
 
 /// The protocol version, the first byte of every frame's payload. 2 since
-/// the localizer's mode replaced the lost flag (issue #27; `docs/link.md`).
-pub const PROTOCOL_VERSION: u8 = 2;
+/// the localizer's mode replaced the lost flag (issue #27), 3 since a
+/// cycle says the place test's standing (issue #48; `docs/link.md`).
+pub const PROTOCOL_VERSION: u8 = 3;
 
 /// From the robot's computer to the controller.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -206,7 +207,7 @@ impl ReadingReport {
 }
 
 /// A finished ring cycle.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct CycleReport {
     /// Which cycle.
@@ -222,6 +223,15 @@ pub struct CycleReport {
     pub particles: u16,
     /// The EKF took over from the particles at its end.
     pub handoff: bool,
+    /// The places the search weighs (while searching): with the place test,
+    /// its living places (version 3).
+    pub hypotheses: u8,
+    /// While searching, the best place's smallest lead over the null and
+    /// every other, nats: the hand-off waits for the test's bound (version 3).
+    pub lead: f32,
+    /// With the place test, how far the EKF's pose trails the null, nats:
+    /// *lost* at the bound (version 3).
+    pub behind: f32,
 }
 
 impl From<&CycleEnd> for CycleReport {
@@ -242,6 +252,9 @@ impl From<&CycleEnd> for CycleReport {
             mode: c.localizer.mode.into(),
             particles: c.localizer.particles,
             handoff: c.localizer.handoff,
+            hypotheses: c.localizer.hypotheses,
+            lead: c.localizer.lead,
+            behind: c.localizer.behind,
         }
     }
 }

@@ -179,6 +179,16 @@ impl<const K: usize> Places<K> {
         self.with_evidence(|e| standing(e, &self.since, self.bound))
     }
 
+    /// Living place `i`'s smallest lead, over the null and every other as
+    /// the test counts it (nats; NaN when `i` is not living). For a viewer:
+    /// the test's own [`Places::standing`] reads the same.
+    pub fn margin_of(&self, i: usize) -> f32 {
+        if i >= self.living.len() {
+            return f32::NAN;
+        }
+        self.with_evidence(|e| margin(e, &self.since, i, self.bound))
+    }
+
     /// The best place's smallest lead, over the null and every other as
     /// the test counts it (nats; at least the bound when one leads); 0 with
     /// no place living, the null alone. Places whose evidence is NaN are
@@ -446,11 +456,16 @@ mod tests {
         let s = bank.cycle(&[], &[], &Motion::default(), &t).unwrap();
         assert_eq!(bank.living().len(), 2);
         assert_eq!(s, Standing::Leads { index: 0, margin: 400.0 });
+        // What a viewer is told of each, by hand: the leader's 400 over the
+        // null and the newcomer; the newcomer level with it since its birth.
+        assert_eq!((bank.margin_of(0), bank.margin_of(1)), (400.0, 0.0));
+        assert!(bank.margin_of(2).is_nan());
         // Both gain the same 200 (set by hand): the newcomer is a
         // contender, level with the alias since its birth.
         bank.living[0] = bank.living[0].with_evidence(600.0);
         bank.living[1] = bank.living[1].with_evidence(200.0);
         assert_eq!(bank.standing(), Standing::Searching);
+        assert_eq!((bank.margin_of(0), bank.margin_of(1), bank.best_margin()), (0.0, 0.0, 0.0));
         // A third, born now, records both.
         assert_eq!(bank.propose(place(9.0, 0.0, 0.0)), Proposal::Joined(2));
         assert_eq!(bank.since[2][..3], [600.0, 200.0, 0.0]);

@@ -14,13 +14,13 @@ use foxglove::messages::{FrameTransforms, Log, PoseInFrame, SceneUpdate};
 use super::run::{mode_message, reading_messages, window_of, At, Sonar, Window};
 use super::scene;
 use super::{Recording, RecordingError};
+use crate::clock::Unwrap;
 
 /// The link's messages, recorded as they come.
 pub struct LinkRecorder<'a> {
     mounts: &'a [Mount],
     window: Window,
-    epoch: u64,
-    last_us: Option<u32>,
+    clock: Unwrap,
     /// The last time written, ns.
     t: u64,
     mode: Option<WireMode>,
@@ -41,7 +41,7 @@ impl<'a> LinkRecorder<'a> {
     /// For a controller with ring `mounts`.
     pub fn new(mounts: &'a [Mount]) -> Self {
         // The window's ranges and half-angle do not depend on the buffer.
-        Self { mounts, window: window_of(0), epoch: 0, last_us: None, t: 0, mode: None, cycle: None }
+        Self { mounts, window: window_of(0), clock: Unwrap::default(), t: 0, mode: None, cycle: None }
     }
 
     /// Advertises the channels to a live view before the first message.
@@ -63,11 +63,7 @@ impl<'a> LinkRecorder<'a> {
     }
 
     fn reading(&mut self, rec: &mut Recording, r: &ReadingReport) {
-        if self.last_us.is_some_and(|l| r.time_us < l) {
-            self.epoch += 1 << 32;
-        }
-        self.last_us = Some(r.time_us);
-        let t = (self.epoch + u64::from(r.time_us)) * 1000;
+        let t = self.clock.next(r.time_us) * 1000;
         self.t = t;
         let p = r.pose.map(f64::from);
         rec.write("/tf", t, &FrameTransforms { transforms: vec![scene::transform(t, "controller", p)] });
@@ -89,7 +85,14 @@ impl<'a> LinkRecorder<'a> {
         if self.mode != Some(r.mode) {
             let reason = match (self.mode, &self.cycle) {
                 (None, _) => "at the start".to_string(),
+                (_, Some(c)) if c.handoff && c.hypotheses > 0 => format!(
+                    "the particles handed off to the EKF: the best of {} places led the null and the rest by {:.1} nats",
+                    c.hypotheses, c.lead
+                ),
                 (_, Some(c)) if c.handoff => "the particles handed off to the EKF".to_string(),
+                (_, Some(c)) if c.behind > 0.0 && r.mode != WireMode::Tracking => {
+                    format!("the EKF's pose trailed the null by {:.1} nats", c.behind)
+                }
                 (_, Some(c)) if c.particles > 0 => format!("searching with {} particles", c.particles),
                 _ => "the EKF's lost flag changed".to_string(),
             };

@@ -14,7 +14,7 @@
 //! | `/sonar` | `foxglove.SceneUpdate` | per reading: the transducer's sensor window (entity `sonar/N`, replacing its last), the predicted and observed ranges as arcs, coloured by verdict |
 //! | `/localization/mode` | `foxglove.Log` | at the start and at each change: searching, tracking or lost, with the reason |
 //! | `/particles` | `foxglove.PointCloud` | as drawn at the start (searching from no pose), then per ring cycle while searching or lost, at most 4 a second: x, y, heading, weight |
-//! | `/hypotheses` | `foxglove.SceneUpdate` | per ring cycle while searching: the heaviest cluster (2σ ellipse, weight) and the best place found elsewhere (its lead) |
+//! | `/hypotheses` | `foxglove.SceneUpdate` | per ring cycle while searching: with the place test its living places (2σ ellipse, evidence over the null, smallest lead, cycles lived; the best green); the heaviest cluster (2σ ellipse, weight) and the best place found elsewhere (its lead) |
 //!
 //! [`run::record`] writes a run; [`Recording`] writes any well-known
 //! message on a channel:

@@ -10,7 +10,7 @@ use foxglove::messages::{FrameTransforms, Log, PackedElementField, PointCloud, S
 
 use super::scene::{self, arc, entity, line, stamp, LINE_LIST, LINE_LOOP, LINE_STRIP};
 use super::{Recording, RecordingError};
-use crate::simulate::filters::{predict_params, CycleRow, Methods, Step, Trace};
+use crate::simulate::filters::{predict_params, CycleRow, Methods, PlaceRow, Step, Trace};
 
 /// Clouds are recorded at most this often (run time, s): a ring cycle's
 /// end while searching or lost, unless the last was nearer than this.
@@ -110,6 +110,7 @@ pub fn record_into<M: MapSource>(
     let mut mode = ModeLog::default();
     let mut cycle = Cycles::default();
     let mut clouds = trace.cycle_clouds.iter().peekable();
+    let mut places = trace.cycle_places.iter().peekable();
     // The cloud as drawn at the start, before any reading (no weights yet: uniform).
     if !trace.cycle_clouds.is_empty() {
         if let Some(c) = trace.clouds.first().filter(|c| c.why == "start" && !c.particles.is_empty()) {
@@ -163,7 +164,13 @@ pub fn record_into<M: MapSource>(
                         rec.write("/particles", t, &particle_cloud(t, &c.poses, &c.weights));
                     }
                 }
-                cycle.hypotheses(rec, t, row);
+                let mut living: &[PlaceRow] = &[];
+                while let Some((k, p)) = places.next_if(|(k, _)| *k <= cycle.row) {
+                    if *k == cycle.row {
+                        living = p;
+                    }
+                }
+                cycle.hypotheses(rec, t, row, living);
             }
             cycle.row += 1;
         }
@@ -190,9 +197,30 @@ impl Cycles {
         true
     }
 
-    /// The cycle's hypotheses, or their removal when the search is over.
-    fn hypotheses(&mut self, rec: &mut Recording, t: u64, row: &CycleRow) {
+    /// The cycle's hypotheses (the place test's living places, each with
+    /// its standing; the particles' heaviest cluster; the old bank's best
+    /// rival), or their removal when the search is over.
+    fn hypotheses(&mut self, rec: &mut Recording, t: u64, row: &CycleRow, places: &[PlaceRow]) {
         let mut ents = Vec::new();
+        // The best first, in the cluster's green; the others amber.
+        let best = places.iter().map(|p| p.margin).filter(|m| !m.is_nan()).fold(f32::NEG_INFINITY, f32::max);
+        for (k, p) in places.iter().enumerate() {
+            let colour = if p.margin == best { [0.0, 0.59, 0.24, 1.0] } else { [0.95, 0.6, 0.0, 1.0] };
+            let m = p.pose.map(f64::from);
+            let (pts, _) = scene::ellipse(m[0], m[1], p.covariance.map(f64::from), 2.0);
+            let mut e = entity(
+                t,
+                &format!("hypothesis/place/{k}"),
+                vec![line(LINE_LOOP, &pts, 1.5, colour)],
+                vec![
+                    ("evidence_over_null_nats", format!("{:.1}", p.evidence)),
+                    ("smallest_lead_nats", format!("{:.1}", p.margin)),
+                    ("cycles_lived", p.cycles.to_string()),
+                ],
+            );
+            e.arrows.push(scene::arrow(m, 0.4, colour));
+            ents.push(e);
+        }
         if let Some((mean, cov, weight)) = row.cluster {
             let m = mean.map(f64::from);
             let (pts, sd) = scene::ellipse(m[0], m[1], cov.map(f64::from), 2.0);

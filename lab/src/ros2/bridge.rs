@@ -22,6 +22,7 @@ use crate::angle::wrap;
 use crate::bag::msgs::{header, mount_pose, pose, transform, PoseWithCovariance, RangeMsg, TfMessage, ULTRASOUND};
 use crate::bag::write::{sonar_frame, BASE_FRAME, MAP_FRAME, ODOM_FRAME, POLAROID_FIELD_OF_VIEW_RAD};
 use crate::bag::write::{POLAROID_MAX_RANGE_M, POLAROID_MIN_RANGE_M};
+use crate::clock::Unwrap;
 
 /// An odometry sample as the link sends it: (controller µs, x m, y m, θ rad).
 pub type Sample = (u32, f32, f32, f32);
@@ -48,11 +49,11 @@ pub struct Bridge {
     /// The odometry sent, controller µs unwrapped, ascending.
     odometry: Vec<(u64, [f64; 3])>,
     /// The odometry's own unwrapping of the controller's clock.
-    odometry_epoch: (u64, Option<u32>),
+    odometry_clock: Unwrap,
     /// (host ns, controller µs unwrapped) at the anchor.
     anchor: Option<(u64, u64)>,
-    epoch: u64,
-    last_us: Option<u32>,
+    /// The readings' unwrapping of it.
+    clock: Unwrap,
     /// The last reading's host stamp, ns, for the cycle after it.
     last_ns: u64,
     /// The robot's base frame, the mounts' parent.
@@ -66,15 +67,6 @@ fn level(m: WireMode) -> u8 {
         WireMode::Searching => 1,
         WireMode::Lost => 2,
     }
-}
-
-/// Unwraps a u32 µs clock: `epoch` grows by 2³² each time it goes back.
-fn unwrap_us(epoch: &mut u64, last: &mut Option<u32>, t: u32) -> u64 {
-    if last.is_some_and(|l| t < l) {
-        *epoch += 1 << 32;
-    }
-    *last = Some(t);
-    *epoch + u64::from(t)
 }
 
 /// `/amcl_pose`'s message: `pose` (x, y m, φ rad) in `map` at `ns`, with the
@@ -134,39 +126,41 @@ pub fn particle_cloud(ns: u64, particles: &[[f32; 3]]) -> PoseArray {
     PoseArray { header: header(ns, MAP_FRAME), poses: particles.iter().map(|q| pose(q.map(f64::from))).collect() }
 }
 
-/// `/diagnostics`' message for a ring cycle that ended in `mode`, with the
-/// cycle's number, particles weighed, gate counts (tested, accepted),
-/// confirmed readings and whether it handed off.
-pub fn mode_diagnostics(
-    ns: u64,
-    mode: WireMode,
-    cycle: u32,
-    particles: u16,
-    gate: [u16; 2],
-    confirmed: u16,
-    handoff: bool,
-) -> DiagnosticArray {
-    let message = match mode {
-        _ if handoff => "tracking: the particles handed off to the EKF".to_string(),
-        WireMode::Tracking => format!("tracking: the gate accepted {} of {} readings", gate[1], gate[0]),
-        WireMode::Searching => format!("searching with {particles} particles"),
-        WireMode::Lost => "lost: the EKF's estimate is not trusted".to_string(),
+/// `/diagnostics`' message for ring cycle `c`: its mode as the level, the
+/// reason as the message (with the place test's standing: the places alive
+/// and the best one's lead while searching, how far the pose trails the
+/// null), and its counts as values.
+pub fn mode_diagnostics(ns: u64, c: &CycleReport) -> DiagnosticArray {
+    let trails =
+        if c.behind > 0.0 { format!("; the pose trails the null by {:.1} nats", c.behind) } else { String::new() };
+    let message = match c.mode {
+        _ if c.handoff => "tracking: the particles handed off to the EKF".to_string(),
+        WireMode::Tracking => format!("tracking: the gate accepted {} of {} readings{trails}", c.gate[1], c.gate[0]),
+        WireMode::Searching if c.hypotheses > 0 => format!(
+            "searching with {} particles: {} places alive, the best {:.1} nats ahead of the null and the rest{trails}",
+            c.particles, c.hypotheses, c.lead
+        ),
+        WireMode::Searching => format!("searching with {} particles{trails}", c.particles),
+        WireMode::Lost => format!("lost: the EKF's estimate is not trusted{trails}"),
     };
     let kv = |k: &str, v: String| KeyValue { key: k.into(), value: v };
     DiagnosticArray {
         header: header(ns, ""),
         status: vec![DiagnosticStatus {
-            level: level(mode),
+            level: level(c.mode),
             name: "echoloc: localization".into(),
             message,
             hardware_id: "sonar controller".into(),
             values: vec![
-                kv("cycle", cycle.to_string()),
-                kv("particles", particles.to_string()),
-                kv("gate tested", gate[0].to_string()),
-                kv("gate accepted", gate[1].to_string()),
-                kv("confirmed", confirmed.to_string()),
-                kv("handoff", handoff.to_string()),
+                kv("cycle", c.cycle.to_string()),
+                kv("particles", c.particles.to_string()),
+                kv("gate tested", c.gate[0].to_string()),
+                kv("gate accepted", c.gate[1].to_string()),
+                kv("confirmed", c.verdicts[0].to_string()),
+                kv("handoff", c.handoff.to_string()),
+                kv("hypotheses", c.hypotheses.to_string()),
+                kv("lead nats", format!("{:.3}", c.lead)),
+                kv("behind nats", format!("{:.3}", c.behind)),
             ],
         }],
     }
@@ -206,10 +200,9 @@ impl Bridge {
             distro,
             mounts: mounts.to_vec(),
             odometry: Vec::with_capacity(odometry.len()),
-            odometry_epoch: (0, None),
+            odometry_clock: Unwrap::default(),
             anchor: None,
-            epoch: 0,
-            last_us: None,
+            clock: Unwrap::default(),
             last_ns: 0,
             base_frame: BASE_FRAME.into(),
         };
@@ -221,8 +214,7 @@ impl Bridge {
 
     /// One more odometry sample sent to the controller (after those before it).
     pub fn add_odometry(&mut self, (t, x, y, th): Sample) {
-        let (epoch, last) = &mut self.odometry_epoch;
-        let t = unwrap_us(epoch, last, t);
+        let t = self.odometry_clock.next(t);
         self.odometry.push((t, [x, y, th].map(f64::from)));
     }
 
@@ -263,9 +255,8 @@ impl Bridge {
     pub fn push(&mut self, m: &FromController, host_ns: u64) -> Vec<Out> {
         match m {
             FromController::Hello { protocol, transducers, map_crc, time_us } => {
-                self.last_us = None;
-                self.epoch = 0;
-                let t = unwrap_us(&mut self.epoch, &mut self.last_us, *time_us);
+                self.clock = Unwrap::default();
+                let t = self.clock.next(*time_us);
                 self.anchor = Some((host_ns, t));
                 vec![Out::Diagnostics(hello_diagnostics(host_ns, *protocol, *transducers, *map_crc, *time_us))]
             }
@@ -283,7 +274,7 @@ impl Bridge {
     }
 
     fn reading(&mut self, r: &ReadingReport, host_ns: u64) -> Vec<Out> {
-        let t = unwrap_us(&mut self.epoch, &mut self.last_us, r.time_us);
+        let t = self.clock.next(r.time_us);
         if self.anchor.is_none() {
             self.anchor = Some((host_ns, t));
         }
@@ -309,7 +300,7 @@ impl Bridge {
     }
 
     fn diagnostics(&self, c: &CycleReport) -> DiagnosticArray {
-        mode_diagnostics(self.last_ns, c.mode, c.cycle, c.particles, c.gate, c.verdicts[0], c.handoff)
+        mode_diagnostics(self.last_ns, c)
     }
 }
 
@@ -423,6 +414,40 @@ mod tests {
         assert_eq!(b.push(&reading(300_000, p, WireOutcome::Unconfirmed(900)), 0).len(), 2);
         let o = b.push(&reading(350_000, p, WireOutcome::NoEcho), 0);
         assert!(matches!(&o[2], Out::Range(_, RangeOut::Humble(r)) if r.range == f32::INFINITY));
+    }
+
+    /// The diagnostic says the place test's standing: the places alive and
+    /// the best one's lead while searching, how far the pose trails.
+    #[test]
+    fn a_cycles_diagnostic_says_the_places_standing() {
+        let c = CycleReport {
+            cycle: 4,
+            verdicts: [3, 0, 0, 1, 0, 2],
+            gate: [6, 4],
+            mode: WireMode::Searching,
+            particles: 1024,
+            handoff: false,
+            hypotheses: 5,
+            lead: 37.25,
+            behind: 0.0,
+        };
+        let d = mode_diagnostics(7, &c);
+        let st = &d.status[0];
+        assert_eq!(st.level, 1);
+        assert_eq!(
+            st.message,
+            "searching with 1024 particles: 5 places alive, the best 37.2 nats ahead of the null and the rest"
+        );
+        let v: Vec<(&str, &str)> = st.values.iter().map(|kv| (kv.key.as_str(), kv.value.as_str())).collect();
+        assert!(
+            v.contains(&("hypotheses", "5")) && v.contains(&("lead nats", "37.250")) && v.contains(&("confirmed", "3"))
+        );
+        let lost = CycleReport { mode: WireMode::Lost, behind: 151.5, ..c };
+        assert_eq!(
+            mode_diagnostics(7, &lost).status[0].message,
+            "lost: the EKF's estimate is not trusted; the pose trails the null by 151.5 nats"
+        );
+        assert_eq!(mode_diagnostics(7, &lost).status[0].level, 2);
     }
 
     #[test]

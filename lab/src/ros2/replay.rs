@@ -8,7 +8,7 @@
 
 use std::time::{Duration, Instant};
 
-use echoloc::link::WireMode;
+use echoloc::link::CycleReport;
 use echoloc::predict::Mount;
 use echoloc::referencing::Reading;
 
@@ -57,11 +57,19 @@ pub fn outputs(distro: Distro, t0_ns: u64, run: &ReplayedRun<'_>) -> Vec<(f64, O
     let mut cycle_outs = Vec::new();
     for (k, row) in tr.cycles.iter().enumerate() {
         let n = ns(row.time_s);
-        let mode: WireMode = row.mode.into();
-        cycle_outs.push((
-            row.time_s,
-            Out::Diagnostics(mode_diagnostics(n, mode, k as u32, row.particles, [0, 0], 0, row.handoff)),
-        ));
+        // What the link would carry of it: a replay keeps no gate counts or verdicts per cycle.
+        let report = CycleReport {
+            cycle: k as u32,
+            verdicts: [0; 6],
+            gate: [0, 0],
+            mode: row.mode.into(),
+            particles: row.particles,
+            handoff: row.handoff,
+            hypotheses: row.hypotheses,
+            lead: row.lead,
+            behind: row.behind,
+        };
+        cycle_outs.push((row.time_s, Out::Diagnostics(mode_diagnostics(n, &report))));
         while let Some(c) = clouds.next_if(|c| c.cycle <= k) {
             if c.cycle == k {
                 cycle_outs.push((row.time_s, Out::Particles(particle_cloud(n, &c.poses))));
@@ -76,6 +84,9 @@ pub fn outputs(distro: Distro, t0_ns: u64, run: &ReplayedRun<'_>) -> Vec<(f64, O
 
 /// Publishes the run as a node `args` names, `speed` run seconds a second.
 pub fn publish(args: &Ros2Args, run: &ReplayedRun<'_>, speed: f64) -> Result<Ros2Counts, LabError> {
+    if args.ros2_odom {
+        return Err(LabError("--ros2-odom: a replay has its odometry; /odom is for `link`".into()));
+    }
     let (tx, _rx) = std::sync::mpsc::channel();
     let node = Ros2Node::start(args, run.mounts, &[], tx)?;
     let wait = Duration::from_secs_f64(args.ros2_wait_s.clamp(0.0, 3600.0));

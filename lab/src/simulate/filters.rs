@@ -117,6 +117,10 @@ pub struct Trace {
     pub clouds: Vec<Cloud>,
     /// The cloud at every cycle's end that held particles, when asked.
     pub cycle_clouds: Vec<CycleCloud>,
+    /// With the place test: its living places at every searching cycle's
+    /// end that had some (carried to the next cycle's start), as a viewer
+    /// shows them: (the row of [`Trace::cycles`], the places).
+    pub cycle_places: Vec<(usize, Vec<PlaceRow>)>,
     /// The localizer's counts.
     pub localizer: localize::LocalizerCounts,
     /// Per reading: the localizer's mode after it.
@@ -124,6 +128,22 @@ pub struct Trace {
     /// Per reading: the estimate's covariance after it, upper triangle
     /// xx, xy, xφ, yy, yφ, φφ (m², m·rad, rad²).
     pub covariance_after: Vec<[f32; 6]>,
+}
+
+/// One of the place test's living places at a cycle's end.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PlaceRow {
+    /// Its pose (x m, y m, φ rad) ...
+    pub pose: [f32; 3],
+    /// ... its position covariance (σ²x, σxy, σ²y) ...
+    pub covariance: [f32; 3],
+    /// ... its evidence over the null, nats ...
+    pub evidence: f32,
+    /// ... its smallest lead over the null and every other as the test
+    /// counts it (the hand-off at the bound), nats ...
+    pub margin: f32,
+    /// ... and the cycles it has lived.
+    pub cycles: u16,
 }
 
 /// What the localizer reported at the end of a ring cycle.
@@ -404,25 +424,19 @@ impl Start {
 /// 71 min).
 pub fn steps_of_records(header: &Header, records: &[Record]) -> Result<Vec<Step>, String> {
     let sound = SpeedOfSound::from_um_per_s(header.speed_um_per_s).map_err(|e| format!("speed of sound: {e:?}"))?;
-    let (mut last_us, mut epoch) = (records.first().map_or(0, |r| r.time_us), 0u64);
+    let mut clock = crate::clock::Unwrap::default();
     Ok(records
         .iter()
-        .map(|r| {
-            if r.time_us < last_us {
-                epoch += 1 << 32;
-            }
-            last_us = r.time_us;
-            Step {
-                time_s: (epoch + u64::from(r.time_us)) as f64 / 1e6,
-                cycle: r.cycle,
-                transducer: r.transducer,
-                odometry: Motion { dx: r.odometry[0], dy: r.odometry[1], dphi: r.odometry[2] },
-                reading: match r.echo_us {
-                    Some(us) => Reading::Echo { range_mm: sound.range_mm(us) },
-                    None => Reading::NoEcho,
-                },
-                truth: Some(r.truth),
-            }
+        .map(|r| Step {
+            time_s: clock.next(r.time_us) as f64 / 1e6,
+            cycle: r.cycle,
+            transducer: r.transducer,
+            odometry: Motion { dx: r.odometry[0], dy: r.odometry[1], dphi: r.odometry[2] },
+            reading: match r.echo_us {
+                Some(us) => Reading::Echo { range_mm: sound.range_mm(us) },
+                None => Reading::NoEcho,
+            },
+            truth: Some(r.truth),
         })
         .collect())
 }
@@ -544,6 +558,25 @@ fn run_with<M: MapSource, const N: usize>(
             if !loc.particles().is_empty() && loc.mode() == Mode::Searching {
                 t.clouds.push(Cloud { time_s, why: "asked", particles: loc.particles().poses().to_vec() });
             }
+        }
+        let places = match (loc.places(), rep.mode) {
+            (Some(b), Mode::Searching) if !rep.handoff => (0..b.living().len())
+                .map(|i| {
+                    let p = &b.living()[i];
+                    let c = p.covariance();
+                    PlaceRow {
+                        pose: p.pose(),
+                        covariance: [c[0][0], c[0][1], c[1][1]],
+                        evidence: p.evidence(),
+                        margin: b.margin_of(i),
+                        cycles: p.cycles(),
+                    }
+                })
+                .collect(),
+            _ => Vec::new(),
+        };
+        if !places.is_empty() {
+            t.cycle_places.push((t.cycles.len(), places));
         }
         let (cluster, bank) = loc.hypotheses();
         let rival = bank.iter().min_by(|a, b| a.lead.total_cmp(&b.lead)).map(|h| (h.pose, h.lead));

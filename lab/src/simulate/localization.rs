@@ -63,6 +63,21 @@ pub fn report(t: &Trace, kidnaps: &[f64]) -> Value {
             error(r).filter(|e| e.0 > OFF_M).map(|e| json!({"time_s": round4(r.time_s), "error_m": round4(e.0)}))
         })
         .collect();
+    // What the search knew when it handed off: the places alive and the
+    // lead it handed off on (with the place test, the winner's smallest
+    // lead over the null and every other), and how far off it was.
+    let standing: Vec<Value> = handoffs
+        .iter()
+        .map(|r| {
+            json!({
+                "time_s": round4(r.time_s),
+                "distance_m": round4(r.distance_m),
+                "places_alive": r.hypotheses,
+                "lead_nats": round4(f64::from(r.lead)),
+                "error_m": error(r).map(|e| round4(e.0)),
+            })
+        })
+        .collect();
     let known: Vec<(&CycleRow, (f64, f64))> = rows.iter().filter_map(|r| error(r).map(|e| (r, e))).collect();
     let off: Vec<&CycleRow> = known.iter().filter(|(_, e)| e.0 > OFF_M).map(|(r, _)| *r).collect();
     let off_known = off.iter().filter(|r| r.mode != Mode::Tracking).count();
@@ -105,6 +120,7 @@ pub fn report(t: &Trace, kidnaps: &[f64]) -> Value {
             "cycles_searching_with_more_than_one": rows.iter().filter(|r| r.mode == Mode::Searching && r.hypotheses > 1).count(),
         },
         "handoffs": handoffs.len(),
+        "handoff_standing": standing,
         "wrong_handoffs": wrong,
         "wakes": t.localizer.wakes,
         "off_fraction": if known.is_empty() { Value::Null } else { json!(round4(off.len() as f64 / known.len() as f64)) },
