@@ -2,7 +2,7 @@
 //! odometry, a physical sonar independent of the predictor ([`world`]), and
 //! the core's verdicts, threshold method and EKF run on the readings
 //! ([`filters`]), the way the firmware runs them; figures ([`figures`]) and
-//! the JSON report ([`report`]). The `simulate` command itself, which also
+//! the JSON report ([`mod@report`]). The `simulate` command itself, which also
 //! writes scenarios, recordings and runs on lidar scans, is
 //! [`crate::simulate_cmd`], above the rooms it uses.
 
