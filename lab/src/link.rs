@@ -235,15 +235,14 @@ fn send_frames(
                 Ok(s) => s,
                 Err(std::sync::mpsc::RecvTimeoutError::Timeout) => {
                     // Commands wait for no sample; the reader's end stops the stream.
-                    match commands.as_deref_mut() {
-                        Some(c) => {
-                            if send_commands(&mut w, c, &mut buf)? {
-                                continue;
-                            }
-                            return Ok(());
-                        }
-                        None => return Ok(()),
+                    let more = match commands.as_deref_mut() {
+                        Some(c) => send_commands(&mut w, c, &mut buf)?,
+                        None => false,
+                    };
+                    if more {
+                        continue;
                     }
+                    return Ok(());
                 }
                 Err(_) => return Ok(()),
             },

@@ -301,9 +301,7 @@ impl Ros2Node {
             }
         }
         let out = self.bridge.push(m, now_ns());
-        if matches!(m, FromController::Hello { .. }) || self.anchor.lock().is_ok_and(|a| a.is_none()) {
-            *self.anchor.lock().unwrap_or_else(|p| p.into_inner()) = self.bridge.anchor();
-        }
+        *self.anchor.lock().unwrap_or_else(|p| p.into_inner()) = self.bridge.anchor();
         for o in out {
             self.publish(o);
         }
