@@ -169,6 +169,29 @@ pub fn simulate_cmd(a: &SimulateArgs) -> Result<String, LabError> {
             a.ring
         )));
     }
+    // A lidar run's own refusals come before the map's compilation.
+    let scans = match &a.scans.from_scans {
+        None => None,
+        Some(_) => {
+            if a.scenario.is_some() || !a.kidnap.is_empty() {
+                return Err(LabError("--from-scans: --scenario and --kidnap do not apply to a lidar run".into()));
+            }
+            if a.only_consistent {
+                return Err(LabError(
+                    "--from-scans: --only-consistent needs the simulator's own world (a lidar run's readings are not labelled consistent or not)".into(),
+                ));
+            }
+            let files = crate::from_scans::cli::Files {
+                log: &a.log,
+                plot: &a.plot,
+                trace: &a.trace,
+                mcap: &a.mcap,
+                bag: &a.bag,
+                readings_csv: &a.readings_csv,
+            };
+            Some(crate::from_scans::cli::prepare(&a.scans, &files)?)
+        }
+    };
     let loaded = crate::map::load::load(&a.map, &a.grid.options(a.buffer_mm, true))?;
     let switches = filters::Switches {
         recovery: !a.no_recovery,
@@ -180,15 +203,7 @@ pub fn simulate_cmd(a: &SimulateArgs) -> Result<String, LabError> {
         bank: a.bank,
         place_test: a.place_test,
     };
-    if a.scans.from_scans.is_some() {
-        if a.scenario.is_some() || !a.kidnap.is_empty() {
-            return Err(LabError("--from-scans: --scenario and --kidnap do not apply to a lidar run".into()));
-        }
-        if a.only_consistent {
-            return Err(LabError(
-                "--from-scans: --only-consistent needs the simulator's own world (a lidar run's readings are not labelled consistent or not)".into(),
-            ));
-        }
+    if let Some(scans) = &scans {
         let common = crate::from_scans::cli::Common {
             map: &a.map,
             seed: a.seed,
@@ -204,7 +219,7 @@ pub fn simulate_cmd(a: &SimulateArgs) -> Result<String, LabError> {
             readings_csv: a.readings_csv.clone(),
             switches,
         };
-        return crate::from_scans::cli::run(&common, &a.scans);
+        return crate::from_scans::cli::run(&common, &a.scans, scans);
     }
     let (map, map_crc) = (loaded.view()?, loaded.crc());
     let mut cfg = WorldConfig::new(a.seed, a.distance_m, a.inconsistent, mounts.clone());

@@ -66,6 +66,16 @@ fn a_lidar_run_becomes_a_map_and_a_sonar_run_echoloc_holds_on() {
     let d = |k: usize| (a[k].as_f64().unwrap() - b[k].as_f64().unwrap()).abs();
     assert!(d(0).hypot(d(1)) < 1e-3 && d(2) < 1e-3, "{a} against {b}");
 
+    // The compiled map read in place is the same map: the same run to the
+    // last digit (only the grid's map_covers_path is not there). The runs
+    // below take it, and skip the YAML's compilation each time.
+    let run = ["--from-scans", s(&intel), "--pass", "0:60", "--map", s(&blob)];
+    let vb = simulate(&[&run[..], &["--readings", "laser"]].concat());
+    for k in ["readings", "ekf", "at_truth", "localization"] {
+        assert_eq!(vb[k], v[k], "{k}: the blob's run against the YAML's");
+    }
+    assert!(vb["from_scans"].get("map_covers_path").is_none(), "{}", vb["from_scans"]);
+
     // The control: echoloc's own prediction at the true pose as the readings.
     let p = simulate(&[&run[..], &["--readings", "predicted"]].concat());
     assert!(num(&p, "ekf.position_rmse_m") <= 0.03, "{}", p["ekf"]);

@@ -118,15 +118,35 @@ pub struct Common<'a> {
     pub switches: crate::simulate::filters::Switches,
 }
 
-/// Runs one rung, or the ladder.
-pub fn run(c: &Common<'_>, a: &ScansArgs) -> Result<String, LabError> {
+/// The lidar run's scans, read and cut to `--pass`, once every option that
+/// does not need the map has been checked: a refusal comes before the map's
+/// compilation (seconds on a real building), not after it.
+pub fn prepare(a: &ScansArgs, c: &Files<'_>) -> Result<crate::lidar::LidarRun, LabError> {
     let Some(path) = &a.from_scans else { return Err(LabError("--from-scans: give a run".into())) };
-    let files = [&c.log, &c.plot, &c.trace, &c.mcap, &c.bag, &c.readings_csv, &a.at_truth_csv, &a.cone_plot];
+    let files = [c.log, c.plot, c.trace, c.mcap, c.bag, c.readings_csv, &a.at_truth_csv, &a.cone_plot];
     if a.ladder && files.iter().any(|f| f.is_some()) {
         return Err(LabError("--ladder writes no files: give one rung (--readings) to write a run's files".into()));
     }
+    if a.sonar == super::harsh::Sonar::Nominal && !a.harsh_without.is_empty() {
+        return Err(LabError("--harsh-without leaves out a part of --sonar harsh; the nominal sonar has none".into()));
+    }
     let pass = crate::lidar::Pass::parse(&a.pass)?;
-    let scans = crate::lidar::read_with(path, &a.bag.options())?.pass(pass)?;
+    Ok(crate::lidar::read_with(path, &a.bag.options())?.pass(pass)?)
+}
+
+/// The files a run writes, as [`prepare`] checks them.
+pub struct Files<'a> {
+    pub log: &'a Option<PathBuf>,
+    pub plot: &'a Option<PathBuf>,
+    pub trace: &'a Option<PathBuf>,
+    pub mcap: &'a Option<PathBuf>,
+    pub bag: &'a Option<PathBuf>,
+    pub readings_csv: &'a Option<PathBuf>,
+}
+
+/// Runs one rung, or the ladder, on the scans [`prepare`] gave.
+pub fn run(c: &Common<'_>, a: &ScansArgs, scans: &crate::lidar::LidarRun) -> Result<String, LabError> {
+    let Some(path) = &a.from_scans else { return Err(LabError("--from-scans: give a run".into())) };
     let view = c.loaded.view()?;
     let grid = match c.loaded.kind() {
         MapKind::RosMapServer => Some(crate::map::ros::load(c.map)?),
@@ -137,9 +157,6 @@ pub fn run(c: &Common<'_>, a: &ScansArgs) -> Result<String, LabError> {
     let mut reports = Vec::new();
     let mut outputs: Vec<(PathBuf, Vec<u8>)> = Vec::new();
     let mut bag_rows: Option<Vec<crate::log::Row>> = None;
-    if a.sonar == super::harsh::Sonar::Nominal && !a.harsh_without.is_empty() {
-        return Err(LabError("--harsh-without leaves out a part of --sonar harsh; the nominal sonar has none".into()));
-    }
     for &rung in &rungs {
         let opt = super::DeriveOptions {
             seed: c.seed,
@@ -154,7 +171,7 @@ pub fn run(c: &Common<'_>, a: &ScansArgs) -> Result<String, LabError> {
             },
         };
         let d =
-            derive(&scans, rung, &inputs, &c.mounts, &opt).map_err(|e| LabError(format!("{}: {e}", path.display())))?;
+            derive(scans, rung, &inputs, &c.mounts, &opt).map_err(|e| LabError(format!("{}: {e}", path.display())))?;
         let how = |s: &mut crate::simulate::filters::Start| {
             s.seed = c.seed;
             s.switches = c.switches;
@@ -165,7 +182,7 @@ pub fn run(c: &Common<'_>, a: &ScansArgs) -> Result<String, LabError> {
         let mut r = report(&trace, None);
         if let Some(o) = r.as_object_mut() {
             o.insert("localization".into(), crate::simulate::localization::report(&trace, &[]));
-            let mut s = summary(&d, &scans, rung);
+            let mut s = summary(&d, scans, rung);
             if let (Some(g), Some(so)) = (&grid, s.as_object_mut()) {
                 so.insert("map_covers_path".into(), json!((map_covers(g, &d.readings) * 1e4).round() / 1e4));
             }
@@ -180,7 +197,7 @@ pub fn run(c: &Common<'_>, a: &ScansArgs) -> Result<String, LabError> {
                 let png = super::cone::draw(
                     &view,
                     &c.mounts,
-                    &scans,
+                    scans,
                     &d.path.scan_times,
                     &kept,
                     at,
