@@ -659,3 +659,44 @@ fn the_place_test_judges_the_tracked_pose_against_the_null() {
     // The readings fit again for some cycles while the EKF still trailed.
     assert!(trailed_awake > 0, "the EKF caught up with the null at once");
 }
+
+/// Tracking keeps its rivals (issue #48 item 4): with `rival_nodes`, the
+/// sweep goes on proposing places while the EKF tracks, the tracked pose
+/// is one of them, and the report counts them and gives the best one's
+/// lead. Tracked from the truth along the depot's aisle at a low bound
+/// (40 nats, where an alias would pass sooner than at 150), none of them
+/// leads the tracked pose by the bound: no takeover, the EKF where the
+/// robot is. Without rivals no place lives while tracking.
+#[test]
+fn tracking_keeps_its_rivals_and_the_truth_holds_against_them() {
+    let depot = Depot::load();
+    let map = depot.view();
+    let net = CredenceNet::shipped();
+    let p = params(&map);
+    let run = |rival_nodes: u16| {
+        let test = PlaceTest { bound: 40.0, rival_nodes, ..PlaceTest::DEFAULT };
+        let mut loc = place_test_localizer::<1024>(5, test);
+        loc.start(Start::Known { pose: along(0), sigma: [0.05, 0.05, 0.02] }, map.field()).unwrap();
+        let mut most = 0u8;
+        for c in 0..48 {
+            loc.odometry(&Motion { dx: if c == 0 { 0.0 } else { 0.25 }, dy: 0.0, dphi: 0.0 }).unwrap();
+            for (m, s) in readings(&map, along(c)) {
+                loc.reading(&map, &m, &p, &net, s.reading).unwrap();
+            }
+            let rep = loc.end_cycle(map.field()).unwrap();
+            assert!(!rep.handoff, "cycle {c}: a rival took over ({rep:?})");
+            if rep.mode == Mode::Tracking {
+                assert_eq!(usize::from(rep.hypotheses), loc.places().map_or(0, |b| b.living().len()), "cycle {c}");
+                most = most.max(rep.hypotheses);
+            }
+        }
+        let (x, t) = (loc.state(), along(47));
+        ((x[0] - t[0]).hypot(x[1] - t[1]), most, loc.counts())
+    };
+    let (off, most, counts) = run(384);
+    assert!(most >= 2, "never more than {most} place beside the tracked pose");
+    assert_eq!(counts.takeovers, 0, "{counts:?}");
+    assert!(off < 0.3, "{off} m from the truth");
+    let (_, most, counts) = run(0);
+    assert_eq!((most, counts.takeovers), (0, 0), "{counts:?}");
+}

@@ -116,6 +116,13 @@ pub struct SimulateArgs {
     /// hand-off). `--place-test 150` is `PlaceTest::DEFAULT`.
     #[arg(long = "place-test", value_parser = parse_bound)]
     place_test: Option<f32>,
+    /// With --place-test: the places go on while tracking, the tracked
+    /// pose among them, the sweep scoring N nodes a cycle to propose
+    /// rivals; one that leads the tracked pose, the null and every other
+    /// by the bound takes over (`PlaceTest::rival_nodes`, issue #48 item 4;
+    /// default 0, none).
+    #[arg(long = "place-rivals", value_name = "N", requires = "place_test")]
+    place_rivals: Option<u16>,
     /// Writes one CSV row per ring cycle: the mode, the estimate, its σ and
     /// the true pose (docs/localization.md).
     #[arg(long)]
@@ -202,6 +209,7 @@ pub fn simulate_cmd(a: &SimulateArgs) -> Result<String, LabError> {
         handoff_z: a.handoff_z,
         bank: a.bank,
         place_test: a.place_test,
+        rival_nodes: a.place_rivals.unwrap_or(0),
     };
     if let Some(scans) = &scans {
         let common = crate::from_scans::cli::Common {

@@ -185,6 +185,12 @@ impl Place {
         self.cycles
     }
 
+    /// The place moved to `other`'s pose and covariance, its own evidence
+    /// and cycles kept: the tracked place follows the EKF.
+    pub(crate) fn moved_to(&mut self, other: &Place) {
+        self.g = other.g;
+    }
+
     /// The place with this evidence: for the bank's tests by hand.
     #[cfg(test)]
     pub(crate) fn with_evidence(mut self, evidence: f32) -> Self {

@@ -1,8 +1,10 @@
 //! The living places and the sequential test between them and the null
 //! (DESIGN §4.8, issue #48): a fixed bank of [`Place`]s, each tracking
 //! itself, each with its evidence over the null hypothesis since it was
-//! born, and every pair's evidence when the younger was born. Not yet
-//! wired into the localizer.
+//! born, and every pair's evidence when the younger was born. The
+//! localizer's judge (`localizer/judge.rs`) holds one while searching,
+//! and with rivals while tracking too, the tracked pose among them
+//! ([`Places::anchor`]).
 //!
 //! - **Proposals** (the particles' cluster, the sweep's places) join the
 //!   bank at the null's level (evidence 0: before it was born, the place
@@ -56,6 +58,12 @@ use crate::referencing::Motion;
 pub const MERGE_M: f32 = 0.25;
 /// ... and this angle (rad, 5°) have converged: they are one.
 pub const MERGE_RAD: f32 = 5.0 * core::f32::consts::PI / 180.0;
+
+/// The squared distance between two poses' positions, m².
+fn distance2(a: &[f32; 3], b: &[f32; 3]) -> f32 {
+    let (dx, dy) = (a[0] - b[0], a[1] - b[1]);
+    dx * dx + dy * dy
+}
 
 /// What the test says.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -272,35 +280,64 @@ impl<const K: usize> Places<K> {
         self.living.truncate(slots.start);
     }
 
+    /// The living place nearest `p` within a metre and 20°, if one is.
+    fn nearest(&self, p: &[f32; 3]) -> Option<usize> {
+        (0..K)
+            .zip(self.living.iter())
+            .filter(|(_, q)| within(&q.pose(), p, SAME_PLACE_M, SAME_PLACE_RAD))
+            .min_by(|a, b| distance2(&a.1.pose(), p).total_cmp(&distance2(&b.1.pose(), p)))
+            .map(|(i, _)| i)
+    }
+
+    /// `place` joins: pushed, or in a full bank in the weakest's slot (not
+    /// `spare`'s) if `beats` says it may take it. Its index.
+    fn join(&mut self, place: Place, spare: Option<usize>, beats: impl Fn(f32) -> bool) -> Option<usize> {
+        let i = if self.living.push(place).is_ok() {
+            self.living.len().checked_sub(1)?
+        } else {
+            let (i, q) = (0..K)
+                .zip(self.living.iter())
+                .filter(|&(i, _)| Some(i) != spare)
+                .min_by(|a, b| a.1.evidence().total_cmp(&b.1.evidence()))?;
+            if !beats(q.evidence()) {
+                return None;
+            }
+            *self.living.get_mut(i)? = place;
+            i
+        };
+        self.born(i);
+        Some(i)
+    }
+
     /// A proposed place (its evidence is taken as it is: a new one's is 0,
     /// the null's level), unless a living place stands within a metre and
     /// 20° of it. A full bank gives it the slot of its weakest place, if
     /// that one trails it.
     pub fn propose(&mut self, place: Place) -> Proposal {
-        let p = place.pose();
-        let near = (0..K).zip(self.living.iter()).find(|(_, q)| within(&q.pose(), &p, SAME_PLACE_M, SAME_PLACE_RAD));
-        if let Some((i, _)) = near {
+        self.propose_sparing(place, None)
+    }
+
+    /// [`Places::propose`], the place at `spare` never giving its slot
+    /// (the tracked place: always weighed, its record kept).
+    pub fn propose_sparing(&mut self, place: Place, spare: Option<usize>) -> Proposal {
+        if let Some(i) = self.nearest(&place.pose()) {
             return Proposal::Held(i);
         }
-        if self.living.push(place).is_ok() {
-            let i = self.living.len() - 1;
-            self.born(i);
-            return Proposal::Joined(i);
+        let e = place.evidence();
+        self.join(place, spare, |weakest| weakest < e).map_or(Proposal::Refused, Proposal::Joined)
+    }
+
+    /// The tracked place (issue #48 item 4): the living place nearest
+    /// `place` within a metre and 20° follows it (its pose and covariance,
+    /// its own evidence and record kept); with none, `place` joins, in the
+    /// weakest's slot when the bank is full whatever that one's evidence
+    /// (the tracked pose is always weighed). Its index.
+    pub fn anchor(&mut self, place: &Place) -> Option<usize> {
+        if let Some(i) = self.nearest(&place.pose()) {
+            self.living.get_mut(i)?.moved_to(place);
+            return Some(i);
         }
-        let weakest = (0..K)
-            .zip(self.living.iter())
-            .min_by(|a, b| a.1.evidence().total_cmp(&b.1.evidence()))
-            .map(|(i, q)| (i, q.evidence()));
-        match weakest {
-            Some((i, e)) if e < place.evidence() => {
-                if let Some(slot) = self.living.get_mut(i) {
-                    *slot = place;
-                }
-                self.born(i);
-                Proposal::Joined(i)
-            }
-            _ => Proposal::Refused,
-        }
+        self.join(*place, None, |_| true)
     }
 
     /// One ring cycle for every place ([`Place::cycle`]); then the
@@ -480,6 +517,41 @@ mod tests {
         bank.keep(&[false, true, true, true]);
         assert_eq!(bank.since[0][..2], [0.0, 0.0]);
         assert_eq!(bank.since[1][..2], [200.0, 0.0]);
+    }
+
+    /// The tracked place, by hand: the nearest living place within a
+    /// metre and 20° follows the EKF (its evidence and record kept); with
+    /// none it joins, in a full bank in the weakest's slot even when every
+    /// place leads the null.
+    #[test]
+    fn the_tracked_place_follows_the_ekf_or_joins() {
+        let mut bank = Places::<2>::new(150.0).unwrap();
+        bank.living.push(place(0.0, 0.0, 0.0).with_evidence(40.0)).unwrap();
+        bank.living.push(place(0.8, 0.0, 0.0).with_evidence(10.0)).unwrap();
+        // 0.5 m from the first, 0.3 m from the second: the second follows.
+        let ekf = Place::new([0.5, 0.0, 0.1], [0.02, 0.02, 0.01], &EkfConfig::DEFAULT).unwrap();
+        assert_eq!(bank.anchor(&ekf), Some(1));
+        let q = bank.living()[1];
+        assert_eq!((q.pose(), q.covariance(), q.evidence()), (ekf.pose(), ekf.covariance(), 10.0));
+        assert_eq!(bank.living()[0].pose(), [0.0, 0.0, 0.0]);
+        // Far from both in a full bank where both lead the null: the weaker
+        // one's slot, the newcomer at the null's level and born now.
+        bank.living[0] = bank.living[0].with_evidence(60.0);
+        let far = place(9.0, 0.0, 0.0);
+        assert_eq!(bank.anchor(&far), Some(1));
+        assert_eq!((bank.living()[1].pose(), bank.living()[1].evidence()), ([9.0, 0.0, 0.0], 0.0));
+        assert_eq!((bank.since[1][0], bank.since[0][1]), (60.0, 0.0));
+        // The tracked slot, the weakest, is spared by a proposal: refused
+        // (the other leads it); not spared, the proposal takes it.
+        let newcomer = place(20.0, 0.0, 0.0).with_evidence(5.0);
+        assert_eq!(bank.propose_sparing(newcomer, Some(1)), Proposal::Refused);
+        assert_eq!(bank.living()[1].pose(), [9.0, 0.0, 0.0]);
+        assert_eq!(bank.propose(newcomer), Proposal::Joined(1));
+        // Turned by 30° where it stands: not the same place, it joins.
+        let mut bank = Places::<2>::new(150.0).unwrap();
+        bank.living.push(place(0.0, 0.0, 0.0)).unwrap();
+        assert_eq!(bank.anchor(&place(0.0, 0.0, 30f32.to_radians())), Some(1));
+        assert_eq!(bank.living().len(), 2);
     }
 
     /// Two places that converged are one: the longer record stays, of two

@@ -388,6 +388,9 @@ pub struct Switches {
     /// The sequential test's bound (`LocalizerConfig::place_test`, the
     /// rest `PlaceTest::DEFAULT`); `None`: the cluster's hand-off.
     pub place_test: Option<f32>,
+    /// With the place test, the nodes the sweep scores a tracking cycle to
+    /// propose rivals to the tracked pose (`PlaceTest::rival_nodes`; 0: none).
+    pub rival_nodes: u16,
 }
 
 impl Switches {
@@ -401,6 +404,7 @@ impl Switches {
         handoff_z: None,
         bank: None,
         place_test: None,
+        rival_nodes: 0,
     };
 }
 
@@ -518,7 +522,11 @@ fn run_with<M: MapSource, const N: usize>(
     let lcfg = LocalizerConfig {
         handoff_z: start.switches.handoff_z.unwrap_or(d.handoff_z),
         bank_keep: start.switches.bank.unwrap_or(d.bank_keep),
-        place_test: start.switches.place_test.map(|bound| PlaceTest { bound, ..PlaceTest::DEFAULT }),
+        place_test: start.switches.place_test.map(|bound| PlaceTest {
+            bound,
+            rival_nodes: start.switches.rival_nodes,
+            ..PlaceTest::DEFAULT
+        }),
         ..d
     };
     let mut loc: Box<Localizer<N>> = Box::new(Localizer::new(lcfg, cfg, verdicts, start.seed));
@@ -560,7 +568,8 @@ fn run_with<M: MapSource, const N: usize>(
             }
         }
         let places = match (loc.places(), rep.mode) {
-            (Some(b), Mode::Searching) if !rep.handoff => (0..b.living().len())
+            // Searching, or tracking with rivals (the tracked pose among them).
+            (Some(b), m) if !rep.handoff && (m == Mode::Searching || rep.hypotheses > 0) => (0..b.living().len())
                 .map(|i| {
                     let p = &b.living()[i];
                     let c = p.covariance();

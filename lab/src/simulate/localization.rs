@@ -123,6 +123,7 @@ pub fn report(t: &Trace, kidnaps: &[f64]) -> Value {
         "handoff_standing": standing,
         "wrong_handoffs": wrong,
         "wakes": t.localizer.wakes,
+        "takeovers": t.localizer.takeovers,
         "off_fraction": if known.is_empty() { Value::Null } else { json!(round4(off.len() as f64 / known.len() as f64)) },
         "off_cycles": off.len(),
         "off_cycles_known": if off.is_empty() { Value::Null } else { json!(round4(off_known as f64 / off.len() as f64)) },
@@ -147,8 +148,9 @@ pub fn trace_csv(t: &Trace) -> String {
     for r in &t.cycles {
         let p = r.covariance;
         let sd = |i: usize| f64::from(p[i][i]).max(0.0).sqrt();
-        // What the hand-off waits for, while the particles search.
-        let (lead, weight) = if r.mode == Mode::Tracking {
+        // What the hand-off waits for, while the particles search; while
+        // tracking with rivals, the best place's lead (the takeover's).
+        let (lead, weight) = if r.mode == Mode::Tracking && r.hypotheses == 0 {
             (String::new(), String::new())
         } else {
             (format!("{:.1}", r.lead), format!("{:.3}", r.cluster_weight))

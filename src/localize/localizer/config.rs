@@ -125,6 +125,12 @@ pub struct PlaceTest {
     pub hit_share: f32,
     /// The null's memory, readings ([`crate::localize::NullModel`]).
     pub null_memory: f32,
+    /// While tracking, the free nodes the sweep scores a cycle to propose
+    /// rivals to the tracked pose (issue #48 item 4): the places are kept
+    /// through the hand-off, the tracked pose is one of them, and a rival
+    /// that leads it, the null and every other by the bound takes over.
+    /// 0: no rivals; the tracked pose is judged against the null alone.
+    pub rival_nodes: u16,
 }
 
 /// The places the test weighs at once.
@@ -144,6 +150,7 @@ impl PlaceTest {
         clip: 2.0,
         hit_share: 0.5,
         null_memory: 400.0,
+        rival_nodes: 0,
     };
 }
 

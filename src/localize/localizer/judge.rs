@@ -17,6 +17,11 @@
 //! on beside the search: its pose is proposed as a place every cycle, the
 //! CUSUM goes on, and the search ends without a hand-off (a calm) only
 //! while the EKF is not behind the null.
+//!
+//! With rivals (`PlaceTest::rival_nodes`) the places go on while tracking
+//! and through a wake-up, the EKF's own place among them (anchored to it):
+//! a slow sweep proposes more, and a place away from the EKF that leads
+//! it, the null and every other by the bound takes over.
 
 use heapless::Vec;
 
@@ -28,10 +33,32 @@ use super::super::particles::Cluster;
 use super::super::place::{Place, PlaceError, Tracking};
 use super::super::places::{Places, Standing};
 use super::super::scan::Candidate;
+use super::super::{within, SAME_PLACE_M, SAME_PLACE_RAD};
 use super::config::{PlaceTest, MAX_SENSED, PLACES};
 use super::error::LocalizeError;
 use super::monitor::back_to_start;
 use crate::referencing::{Ekf, EkfConfig, Motion};
+
+/// A place's refusal as the localizer's.
+fn place_error(e: PlaceError) -> LocalizeError {
+    match e {
+        PlaceError::Filter(e) => LocalizeError::Ekf(e),
+        // One null score a reading, by construction in the judge.
+        PlaceError::Mismatch => LocalizeError::PlaceTest,
+    }
+}
+
+/// What the test says of the tracked pose at a tracking cycle's end.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) enum Judged {
+    /// It holds: not the bound behind the null, and no rival leads.
+    Holds,
+    /// The null leads it by the bound: *lost*.
+    Lost,
+    /// A rival leads it, the null and every other by the bound: the EKF
+    /// starts there (its pose and covariance at the next cycle's start).
+    Overtaken([f32; 3], [[f32; 3]; 3]),
+}
 
 /// The test's state: the living places, the null, and how far the tracked
 /// pose trails the null.
@@ -70,22 +97,55 @@ impl Judge {
     /// One tracking cycle: the tracked pose (`tracked`: the EKF and the
     /// odometry since the cycle's start, so its pose at the cycle's start
     /// with its covariance) scores `sensed` as a place would, and the
-    /// null's CUSUM lead over it moves by the evidence. True when it has
-    /// reached the bound: the tracked pose is *lost*. Kept out of line:
+    /// null's CUSUM lead over it moves by the evidence: *lost* when it has
+    /// reached the bound. With rivals (`test.rival_nodes`), the tracked
+    /// pose is then one of the places ([`Places::anchor`]), the sweep's
+    /// best `candidates` are proposed, every place takes the cycle, and a
+    /// place away from the EKF (`offset` carries them to the next cycle's
+    /// start, where the EKF is) that leads takes over. Kept out of line:
     /// its frame is the tracking cycle's end's alone.
     #[inline(never)]
+    #[allow(clippy::too_many_arguments)]
     pub(super) fn track(
         &mut self,
         test: &PlaceTest,
         sensed: &[Sensed],
+        offset: &Motion,
         tracked: (&Ekf, &[f32; 3]),
+        candidates: &[Candidate],
         lookup: &FieldLookup<'_, '_>,
         beam: &BeamModel,
-    ) -> bool {
-        let nulls = self.nulls(sensed);
-        let t = Tracking { lookup, beam, ekf: tracked.0.config(), clip: test.clip, hit_share: test.hit_share };
-        self.score_tracked(sensed, &nulls, tracked, &t);
-        self.behind >= test.bound
+    ) -> Result<Judged, LocalizeError> {
+        let ekf = tracked.0.config();
+        let standing = if test.rival_nodes == 0 {
+            let nulls = self.nulls(sensed);
+            let t = Tracking { lookup, beam, ekf, clip: test.clip, hit_share: test.hit_share };
+            self.score_tracked(sensed, &nulls, tracked, &t);
+            Standing::Searching
+        } else {
+            self.weigh(test, sensed, offset, Some(tracked), true, None, candidates, lookup, beam, ekf)?
+        };
+        if self.behind >= test.bound {
+            return Ok(Judged::Lost);
+        }
+        let Standing::Leads { index, .. } = standing else { return Ok(Judged::Holds) };
+        let Some(leader) = self.places.living().get(index) else { return Ok(Judged::Holds) };
+        Ok(if within(&leader.pose(), &tracked.0.state(), SAME_PLACE_M, SAME_PLACE_RAD) {
+            Judged::Holds
+        } else {
+            Judged::Overtaken(leader.pose(), leader.covariance())
+        })
+    }
+
+    /// The sweep's best places proposed (σ `sweep_sigma`; one refused
+    /// silently when not finite).
+    /// The tracked place's slot, `spare`, is never given to one.
+    fn propose_sweep(&mut self, test: &PlaceTest, candidates: &[Candidate], ekf: &EkfConfig, spare: Option<usize>) {
+        for cand in candidates.iter().take(usize::from(test.proposals)) {
+            if let Ok(place) = Place::new(cand.pose, test.sweep_sigma, ekf) {
+                self.places.propose_sparing(place, spare);
+            }
+        }
     }
 
     /// The tracked pose scores the cycle as a place (a pose the place
@@ -131,12 +191,41 @@ impl Judge {
         beam: &BeamModel,
         ekf: &EkfConfig,
     ) -> Result<Standing, LocalizeError> {
+        // With rivals the awake EKF's place follows it through the search
+        // too: else it strays on its own from the pose the EKF keeps, and
+        // its banked lead hands off to where it strayed.
+        self.weigh(test, sensed, offset, awake, test.rival_nodes > 0, cluster, candidates, lookup, beam, ekf)
+    }
+
+    /// The cycle of [`Judge::cycle`]; with `anchored` (rivals: while
+    /// tracking, or beside the search after a wake-up) the EKF's place is
+    /// the tracked one, anchored to it and never giving its slot to a
+    /// proposal.
+    #[allow(clippy::too_many_arguments)]
+    fn weigh(
+        &mut self,
+        test: &PlaceTest,
+        sensed: &[Sensed],
+        offset: &Motion,
+        awake: Option<(&Ekf, &[f32; 3])>,
+        anchored: bool,
+        cluster: Option<&Cluster>,
+        candidates: &[Candidate],
+        lookup: &FieldLookup<'_, '_>,
+        beam: &BeamModel,
+        ekf: &EkfConfig,
+    ) -> Result<Standing, LocalizeError> {
         // The null scores each reading before the places do.
         let nulls = self.nulls(sensed);
         let t = Tracking { lookup, beam, ekf, clip: test.clip, hit_share: test.hit_share };
-        // The EKF beside the search goes on being judged, and is a place.
+        // The EKF (beside the search, or tracking) goes on being judged, and is a place.
+        let mut spare = None;
         if let Some(place) = awake.and_then(|tracked| self.score_tracked(sensed, &nulls, tracked, &t)) {
-            self.places.propose(place);
+            if anchored {
+                spare = self.places.anchor(&place);
+            } else {
+                self.places.propose(place);
+            }
         }
         if let Some(c) = cluster.filter(|c| c.weight >= test.cluster_weight) {
             let p = &c.covariance;
@@ -149,16 +238,8 @@ impl Judge {
                 self.places.propose(place);
             }
         }
-        for cand in candidates.iter().take(usize::from(test.proposals)) {
-            if let Ok(place) = Place::new(cand.pose, test.sweep_sigma, ekf) {
-                self.places.propose(place);
-            }
-        }
-        self.places.cycle(sensed, &nulls, offset, &t).map_err(|e| match e {
-            PlaceError::Filter(e) => LocalizeError::Ekf(e),
-            // One null score a reading, by construction above.
-            PlaceError::Mismatch => LocalizeError::PlaceTest,
-        })
+        self.propose_sweep(test, candidates, ekf, spare);
+        self.places.cycle(sensed, &nulls, offset, &t).map_err(place_error)
     }
 
     /// Forgets every place (the null keeps what it heard: the readings'

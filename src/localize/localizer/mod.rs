@@ -43,7 +43,8 @@ use super::history::History;
 use super::hypotheses::{Bank, Hypothesis};
 use super::particles::{Cluster, ParticleSet, Sensed, Weighed};
 use super::places::{Places, Standing};
-use super::scan::{Candidate, Sweep, SCAN_KEEP};
+use super::scan::{Candidate, ScanConfig, Sweep, SCAN_KEEP};
+use super::{within, SAME_PLACE_M, SAME_PLACE_RAD};
 use crate::credence::Credence;
 use crate::f32math::{sin_cos, sqrt};
 use crate::map::field::FieldView;
@@ -53,7 +54,7 @@ use crate::referencing::{
     wrap, CycleUpdates, Ekf, EkfConfig, Motion, Reading, ReadingReport, Referencer, Verdict, VerdictConfig,
     VerdictCounts,
 };
-use judge::Judge;
+use judge::{Judge, Judged};
 
 /// Where the localizer starts.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -284,6 +285,8 @@ impl<const N: usize> Localizer<N> {
             verdicts: VerdictCounts::default(),
             updates: CycleUpdates::default(),
         };
+        // The sweep's proposals: the search's, or the rivals' while tracking.
+        let mut candidates: heapless::Vec<Candidate, SCAN_KEEP> = heapless::Vec::new();
         match self.mode {
             Mode::Searching => {
                 let cfg = self.cfg;
@@ -324,7 +327,6 @@ impl<const N: usize> Localizer<N> {
                 let enough = w.readings >= u16::from(cfg.handoff_min_readings);
                 // The search's proposals, and how far the cluster leads the
                 // best of them elsewhere on the last cycles' readings.
-                let mut candidates: heapless::Vec<Candidate, SCAN_KEEP> = heapless::Vec::new();
                 self.sweep.scan(&self.sensed, &lookup, &cfg.mcl.beam, &cfg.scan, &mut candidates);
                 // A cluster that is not the last one has a new bank: the
                 // leads were the last one's. (Restating them as the new
@@ -391,6 +393,17 @@ impl<const N: usize> Localizer<N> {
                 };
                 match (leader, cluster) {
                     // The place already took the cycle's odometry.
+                    // With rivals, the place the test prefers is where the
+                    // EKF beside the search already is: the search ends
+                    // there, the EKF as it is (no hand-off to the place's
+                    // coarser estimate).
+                    (Some((x, _)), _)
+                        if self.rivals()
+                            && self.ekf_awake
+                            && within(&x, &self.referencer.ekf.state(), SAME_PLACE_M, SAME_PLACE_RAD) =>
+                    {
+                        self.calm_down(&mut report);
+                    }
                     (Some((x, p)), _) => {
                         self.handoff(x, p, None)?;
                         report.handoff = true;
@@ -438,18 +451,7 @@ impl<const N: usize> Localizer<N> {
                         let calms = self.ekf_awake && (agrees || fits) && level;
                         self.calm = if calms { self.calm.saturating_add(1) } else { 0 };
                         if self.ekf_awake && self.calm >= cfg.calm_cycles {
-                            self.mode = Mode::Tracking;
-                            self.ekf_awake = false;
-                            self.calm = 0;
-                            self.cluster = None;
-                            self.bank.clear();
-                            if let Some(j) = self.judge.as_mut() {
-                                j.clear();
-                            }
-                            self.fit.1 = self.fit.0;
-                            self.misfit = 0;
-                            self.counts.calmed = self.counts.calmed.saturating_add(1);
-                            report.calmed = true;
+                            self.calm_down(&mut report);
                         }
                     }
                 }
@@ -458,9 +460,16 @@ impl<const N: usize> Localizer<N> {
                 (report.verdicts, report.updates) = self.referencer.end_cycle();
                 self.calm = 0;
                 let misfit = self.monitor(&lookup, &mut report);
-                let trails = self.trails(&lookup, &mut report);
-                let lost = self.referencer.ekf.is_lost() || misfit || trails;
-                if lost && N > 0 {
+                let judged = self.trails(&lookup, &mut candidates, &mut report)?;
+                let lost = self.referencer.ekf.is_lost() || misfit || judged == Judged::Lost;
+                if let Judged::Overtaken(x, p) = judged {
+                    // A rival the test prefers: the EKF goes there, the
+                    // places kept (the old pose among them).
+                    self.handoff(x, p, None)?;
+                    report.handoff = true;
+                    report.mode = Mode::Tracking;
+                    self.counts.takeovers = self.counts.takeovers.saturating_add(1);
+                } else if lost && N > 0 {
                     report.mode = Mode::Lost;
                     self.wake(&lookup)?;
                     report.woke = true;
@@ -484,20 +493,63 @@ impl<const N: usize> Localizer<N> {
         Ok(report)
     }
 
-    /// With the place test, the tracked pose against the null: true when
-    /// its CUSUM reaches the bound (the report's `behind`). Out of line,
-    /// so that its frame is not the cycle's end's on every path (the EKF's
-    /// recovery below that is the deepest).
+    /// With the place test, the tracked pose against the null (*lost*
+    /// when its CUSUM reaches the bound: the report's `behind`), and with
+    /// rivals against them (the sweep scoring `rival_nodes` nodes a
+    /// cycle to propose them). Out of line, so that its frame is not the
+    /// cycle's end's on every path (the EKF's recovery below that is the
+    /// deepest); the rivals' proposals are swept into `candidates`, the
+    /// cycle's end's buffer for the search's.
     #[inline(never)]
-    fn trails(&mut self, lookup: &FieldLookup<'_, '_>, report: &mut CycleReport) -> bool {
+    fn trails(
+        &mut self,
+        lookup: &FieldLookup<'_, '_>,
+        candidates: &mut heapless::Vec<Candidate, SCAN_KEEP>,
+        report: &mut CycleReport,
+    ) -> Result<Judged, LocalizeError> {
         if N == 0 || lookup.field().is_empty() {
-            return false;
+            return Ok(Judged::Holds);
         }
-        let (Some(test), Some(judge)) = (&self.cfg.place_test, self.judge.as_mut()) else { return false };
+        let (Some(test), Some(judge)) = (&self.cfg.place_test, self.judge.as_mut()) else {
+            return Ok(Judged::Holds);
+        };
+        if test.rival_nodes > 0 {
+            let scan = ScanConfig { nodes_per_cycle: test.rival_nodes, ..self.cfg.scan };
+            self.sweep.scan(&self.sensed, lookup, &self.cfg.mcl.beam, &scan, candidates);
+        }
+        let offset = Motion { dx: self.offset[0], dy: self.offset[1], dphi: self.offset[2] };
         let tracked = (&self.referencer.ekf, &self.offset);
-        let trails = judge.track(test, &self.sensed, tracked, lookup, &self.cfg.mcl.beam);
+        let judged = judge.track(test, &self.sensed, &offset, tracked, candidates, lookup, &self.cfg.mcl.beam)?;
         report.behind = judge.behind;
-        trails
+        if test.rival_nodes > 0 {
+            report.hypotheses = judge.places.living().len() as u8;
+            report.lead = judge.places.best_margin();
+        }
+        Ok(judged)
+    }
+
+    /// Whether the place test keeps its places while tracking (rivals).
+    fn rivals(&self) -> bool {
+        self.cfg.place_test.is_some_and(|t| t.rival_nodes > 0)
+    }
+
+    /// The search beside the awake EKF ends without a hand-off: the EKF
+    /// goes on tracking where it is (the fit monitor takes the readings as
+    /// they are now for its long-term average).
+    fn calm_down(&mut self, report: &mut CycleReport) {
+        self.mode = Mode::Tracking;
+        self.ekf_awake = false;
+        self.calm = 0;
+        self.cluster = None;
+        self.bank.clear();
+        let rivals = self.rivals();
+        if let Some(j) = self.judge.as_mut().filter(|_| !rivals) {
+            j.clear();
+        }
+        self.fit.1 = self.fit.0;
+        self.misfit = 0;
+        self.counts.calmed = self.counts.calmed.saturating_add(1);
+        report.calmed = true;
     }
 
     /// The EKF starts at `x` with covariance `p` (its variances at least
@@ -521,8 +573,12 @@ impl<const N: usize> Localizer<N> {
         self.converged = 0;
         self.cluster = None;
         self.bank.clear();
+        let rivals = self.rivals();
         if let Some(j) = self.judge.as_mut() {
-            j.clear();
+            // With rivals the places go on beside the EKF, its new pose among them.
+            if !rivals {
+                j.clear();
+            }
             j.behind = 0.0;
         }
         self.counts.handoffs = self.counts.handoffs.saturating_add(1);
@@ -546,7 +602,10 @@ impl<const N: usize> Localizer<N> {
         self.calm = 0;
         self.converged = 0;
         self.bank.clear();
-        if let Some(j) = self.judge.as_mut() {
+        // With rivals the places go on through the wake-up: the place that
+        // was gaining on the tracked pose keeps its record.
+        let rivals = self.rivals();
+        if let Some(j) = self.judge.as_mut().filter(|_| !rivals) {
             j.clear();
         }
         self.cluster = self.particles.cluster(c.handoff_radius_m, c.handoff_angle_rad);

@@ -91,4 +91,7 @@ pub struct LocalizerCounts {
     pub wakes: u32,
     /// Searches ended because the EKF beside them was no longer lost.
     pub calmed: u32,
+    /// Hand-offs while tracking: a rival the place test preferred to the
+    /// tracked pose (counted in `handoffs` too).
+    pub takeovers: u32,
 }

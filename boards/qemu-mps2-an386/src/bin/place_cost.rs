@@ -27,6 +27,7 @@ use cortex_m_rt::entry;
 use cortex_m_semihosting::hprintln;
 use echoloc::localize::place::{Place, PlaceCycle, Tracking};
 use echoloc::localize::places::{Places, Standing};
+use echoloc::localize::scan::{Candidate, ScanConfig, Sweep, SCAN_KEEP};
 use echoloc::localize::{BeamModel, FieldLookup, NullModel, Sensed};
 use echoloc::map::{Aligned, Expected, MapView};
 use echoloc::predict::PIONEER16;
@@ -48,6 +49,17 @@ fn null_call(n: &mut NullModel, sensed: &[Sensed], out: &mut [f32; 16]) {
     for (o, s) in out.iter_mut().zip(sensed) {
         *o = n.log_likelihood(s.reading);
     }
+}
+
+#[inline(never)]
+fn sweep_call(
+    w: &mut Sweep,
+    sensed: &[Sensed],
+    lookup: &FieldLookup<'_, '_>,
+    cfg: &ScanConfig,
+    out: &mut heapless::Vec<Candidate, SCAN_KEEP>,
+) {
+    w.scan(sensed, lookup, &BeamModel::DEFAULT, cfg, out);
 }
 
 #[inline(never)]
@@ -179,6 +191,28 @@ fn main() -> ! {
     hprintln!("metric places8_state_bytes {}", core::mem::size_of::<Places<PLACES>>());
     if bank.living().len() != PLACES {
         hprintln!("FAIL: the bank lost places at a bound of 10⁹ nats");
+        ok = false;
+    }
+
+    // The rivals' slow sweep while tracking (`PlaceTest::rival_nodes`): 96
+    // free nodes a cycle on one ring, as `simulate --place-rivals 96` runs it.
+    let scan = ScanConfig { nodes_per_cycle: 96, ..ScanConfig::DEFAULT };
+    let mut sweep = Sweep::default();
+    let mut out: heapless::Vec<Candidate, SCAN_KEEP> = heapless::Vec::new();
+    let t0 = ticks(&syst);
+    for _ in 0..N {
+        sweep_call(black_box(&mut sweep), black_box(&sensed[0]), &lookup, &scan, &mut out);
+    }
+    let with = elapsed(t0, ticks(&syst));
+    let t0 = ticks(&syst);
+    for _ in 0..N {
+        black_box(&mut sweep);
+        black_box(&sensed[0]);
+    }
+    let base = elapsed(t0, ticks(&syst));
+    hprintln!("metric sweep96_cycle_insns {} ({} candidates)", with.saturating_sub(base) * per_tick / N, out.len());
+    if out.is_empty() {
+        hprintln!("FAIL: the sweep proposed nothing");
         ok = false;
     }
 
