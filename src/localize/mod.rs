@@ -60,8 +60,14 @@ pub(crate) const SAME_PLACE_RAD: f32 = SAME_PLACE_DEG * core::f32::consts::PI / 
 /// each other (false for a NaN).
 #[inline(always)]
 pub(crate) fn within(a: &[f32; 3], b: &[f32; 3], m: f32, rad: f32) -> bool {
+    dist2(a, b) <= m * m && libm::fabsf(crate::referencing::wrap(a[2] - b[2])) <= rad
+}
+
+/// The squared distance between two poses' positions, m².
+#[inline(always)]
+pub(crate) fn dist2(a: &[f32; 3], b: &[f32; 3]) -> f32 {
     let (dx, dy) = (a[0] - b[0], a[1] - b[1]);
-    dx * dx + dy * dy <= m * m && libm::fabsf(crate::referencing::wrap(a[2] - b[2])) <= rad
+    dx * dx + dy * dy
 }
 
 pub use beam::BeamModel;

@@ -51,19 +51,13 @@ use heapless::Vec;
 
 use super::measure::Sensed;
 use super::place::{Place, PlaceError, Tracking};
-use super::{within, SAME_PLACE_M, SAME_PLACE_RAD};
+use super::{dist2, within, SAME_PLACE_M, SAME_PLACE_RAD};
 use crate::referencing::Motion;
 
 /// Two places within this distance (m) ...
 pub const MERGE_M: f32 = 0.25;
 /// ... and this angle (rad, 5°) have converged: they are one.
 pub const MERGE_RAD: f32 = 5.0 * core::f32::consts::PI / 180.0;
-
-/// The squared distance between two poses' positions, m².
-fn distance2(a: &[f32; 3], b: &[f32; 3]) -> f32 {
-    let (dx, dy) = (a[0] - b[0], a[1] - b[1]);
-    dx * dx + dy * dy
-}
 
 /// What the test says.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -285,7 +279,7 @@ impl<const K: usize> Places<K> {
         (0..K)
             .zip(self.living.iter())
             .filter(|(_, q)| within(&q.pose(), p, SAME_PLACE_M, SAME_PLACE_RAD))
-            .min_by(|a, b| distance2(&a.1.pose(), p).total_cmp(&distance2(&b.1.pose(), p)))
+            .min_by(|a, b| dist2(&a.1.pose(), p).total_cmp(&dist2(&b.1.pose(), p)))
             .map(|(i, _)| i)
     }
 

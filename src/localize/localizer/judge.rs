@@ -138,8 +138,8 @@ impl Judge {
     }
 
     /// The sweep's best places proposed (σ `sweep_sigma`; one refused
-    /// silently when not finite).
-    /// The tracked place's slot, `spare`, is never given to one.
+    /// silently when not finite), none given the tracked place's slot,
+    /// `spare`.
     fn propose_sweep(&mut self, test: &PlaceTest, candidates: &[Candidate], ekf: &EkfConfig, spare: Option<usize>) {
         for cand in candidates.iter().take(usize::from(test.proposals)) {
             if let Ok(place) = Place::new(cand.pose, test.sweep_sigma, ekf) {
@@ -242,10 +242,14 @@ impl Judge {
         self.places.cycle(sensed, &nulls, offset, &t).map_err(place_error)
     }
 
-    /// Forgets every place (the null keeps what it heard: the readings'
-    /// mix does not depend on where the robot is thought to be; the CUSUM
-    /// goes on judging the EKF, which a wake-up does not move).
-    pub(super) fn clear(&mut self) {
-        self.places.clear();
+    /// At a hand-off, a calm or a wake-up: forgets every place, unless
+    /// they are rivals (`rival_nodes`), which go on through all three (the
+    /// null keeps what it heard: the readings' mix does not depend on
+    /// where the robot is thought to be; the CUSUM goes on judging the
+    /// EKF, which a wake-up does not move).
+    pub(super) fn clear(&mut self, test: &PlaceTest) {
+        if test.rival_nodes == 0 {
+            self.places.clear();
+        }
     }
 }

@@ -392,7 +392,6 @@ impl<const N: usize> Localizer<N> {
                     _ => 0,
                 };
                 match (leader, cluster) {
-                    // The place already took the cycle's odometry.
                     // With rivals, the place the test prefers is where the
                     // EKF beside the search already is: the search ends
                     // there, the EKF as it is (no hand-off to the place's
@@ -404,6 +403,7 @@ impl<const N: usize> Localizer<N> {
                     {
                         self.calm_down(&mut report);
                     }
+                    // The place already took the cycle's odometry.
                     (Some((x, p)), _) => {
                         self.handoff(x, p, None)?;
                         report.handoff = true;
@@ -542,9 +542,8 @@ impl<const N: usize> Localizer<N> {
         self.calm = 0;
         self.cluster = None;
         self.bank.clear();
-        let rivals = self.rivals();
-        if let Some(j) = self.judge.as_mut().filter(|_| !rivals) {
-            j.clear();
+        if let (Some(j), Some(test)) = (self.judge.as_mut(), &self.cfg.place_test) {
+            j.clear(test);
         }
         self.fit.1 = self.fit.0;
         self.misfit = 0;
@@ -573,12 +572,8 @@ impl<const N: usize> Localizer<N> {
         self.converged = 0;
         self.cluster = None;
         self.bank.clear();
-        let rivals = self.rivals();
-        if let Some(j) = self.judge.as_mut() {
-            // With rivals the places go on beside the EKF, its new pose among them.
-            if !rivals {
-                j.clear();
-            }
+        if let (Some(j), Some(test)) = (self.judge.as_mut(), &self.cfg.place_test) {
+            j.clear(test);
             j.behind = 0.0;
         }
         self.counts.handoffs = self.counts.handoffs.saturating_add(1);
@@ -602,11 +597,10 @@ impl<const N: usize> Localizer<N> {
         self.calm = 0;
         self.converged = 0;
         self.bank.clear();
-        // With rivals the places go on through the wake-up: the place that
-        // was gaining on the tracked pose keeps its record.
-        let rivals = self.rivals();
-        if let Some(j) = self.judge.as_mut().filter(|_| !rivals) {
-            j.clear();
+        // With rivals the place that was gaining on the tracked pose keeps
+        // its record.
+        if let (Some(j), Some(test)) = (self.judge.as_mut(), &self.cfg.place_test) {
+            j.clear(test);
         }
         self.cluster = self.particles.cluster(c.handoff_radius_m, c.handoff_angle_rad);
         self.counts.wakes = self.counts.wakes.saturating_add(1);

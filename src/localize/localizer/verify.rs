@@ -8,7 +8,7 @@ use super::super::hypotheses::{Bank, Hypothesis, Proposal, BANK};
 use super::super::measure::Measure;
 use super::super::particles::Cluster;
 use super::super::scan::{Candidate, SCAN_KEEP};
-use super::super::{within, SAME_PLACE_M, SAME_PLACE_RAD};
+use super::super::{dist2, within, SAME_PLACE_M, SAME_PLACE_RAD};
 use super::Localizer;
 use crate::referencing::wrap;
 
@@ -170,13 +170,6 @@ impl<const N: usize> Localizer<N> {
         }
         lead
     }
-}
-
-/// The squared distance between two poses' positions, m².
-#[inline(always)]
-fn dist2(a: &[f32; 3], b: &[f32; 3]) -> f32 {
-    let (dx, dy) = (a[0] - b[0], a[1] - b[1]);
-    dx * dx + dy * dy
 }
 
 /// The difference of two poses' headings, rad, in `[0, π]` (apart: the
