@@ -24,3 +24,13 @@ host=$(rustc -vV | sed -n 's/^host: //p')
 size="$(rustc --print sysroot)/lib/rustlib/$host/bin/llvm-size"
 echo "sizes of $elf (text = flash code+rodata, data = flash and RAM, bss = RAM):"
 "$size" -A "$elf" | awk 'NR<=2 || /^\.(vector_table|text|rodata|data|bss|uninit)/'
+# No soft double precision on the M4F (2026-12-02: 4.7 KiB of flash went to
+# it): a `f64` in the core's firmware paths links `__aeabi_d*` and fails here.
+nm="$(rustc --print sysroot)/lib/rustlib/$host/bin/llvm-nm"
+soft=$("$nm" "$elf" | grep -E ' __aeabi_d|__(add|sub|mul|div)df3| (sqrt|floor|ceil|round|trunc)$' || true)
+if [ -n "$soft" ]; then
+  echo "FAIL: $elf links soft f64 (keep the firmware's arithmetic f32 or integer):" >&2
+  echo "$soft" >&2
+  exit 1
+fi
+echo "no soft f64 in $elf"

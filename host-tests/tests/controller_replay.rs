@@ -119,7 +119,7 @@ fn driver_path_equals_direct_loop_and_meets_the_bounds() {
     // Every echo the simulator wrote is one the driver accepts (none inside
     // blanking, none untimed).
     assert_eq!(summary.counts.invalid, 0, "{summary:?}");
-    assert!(score.position_rmse_m < f64::from(header.bound_position_m));
+    assert!(score.position_rmse_m < header.bound_position_m);
 }
 
 /// `bytes` replayed through the driver with the scenario's own odometry.

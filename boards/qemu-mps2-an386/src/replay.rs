@@ -119,7 +119,7 @@ pub fn replay<const P: usize>(
         return None;
     }
     let h = scenario.header();
-    let f = |v: f32| Fixed6(f64::from(v));
+    let f = Fixed6;
     hprintln!(
         "scenario: {} records, {} transducers, {} bytes; start ({}, {}) m, {} rad; bounds {} m, {} deg RMSE",
         scenario.len(),
@@ -213,18 +213,27 @@ pub fn run_loop<const P: usize>(
 }
 
 /// `v` with six decimals, formatted with integers only: core's float
-/// formatting would add about 10 KiB of flash for a few lines of output.
-pub struct Fixed6(pub f64);
+/// formatting would add about 10 KiB of flash for a few lines of output,
+/// and `f64` a soft double library (the M4F's FPU is single precision).
+/// The whole part and the fraction apart (`v - trunc(v)` is exact), so
+/// that the fraction's millionths round as they would in `f64` for any
+/// value an `f32` pose or score holds.
+pub struct Fixed6(pub f32);
 
 impl core::fmt::Display for Fixed6 {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         if !self.0.is_finite() {
             return f.write_str("nan");
         }
-        let micro = libm::round(self.0 * 1e6) as i64;
-        let sign = if micro < 0 { "-" } else { "" };
-        let m = micro.unsigned_abs();
-        write!(f, "{}{}.{:06}", sign, m / 1_000_000, m % 1_000_000)
+        let a = self.0.abs();
+        let whole = libm::truncf(a);
+        let mut micro = libm::roundf((a - whole) * 1e6) as u64;
+        let mut whole = whole as u64;
+        if micro == 1_000_000 {
+            (whole, micro) = (whole + 1, 0);
+        }
+        let sign = if self.0 < 0.0 && (whole, micro) != (0, 0) { "-" } else { "" };
+        write!(f, "{}{}.{:06}", sign, whole, micro)
     }
 }
 
@@ -232,12 +241,12 @@ impl core::fmt::Display for Fixed6 {
 pub fn report(r: &BoardReplay, bounds: (f32, f32)) -> bool {
     let s = &r.summary;
     let c = &s.counts;
-    let (bp, bh) = (Fixed6(f64::from(bounds.0)), Fixed6(f64::from(bounds.1)));
+    let (bp, bh) = (Fixed6(bounds.0), Fixed6(bounds.1));
     hprintln!(
         "loop: {} readings in {} cycles: {} echoes ({} not confirmed by EERUF), {} no echo, {} invalid; EKF accepted {}, gated {}; lost {} times, {} cycles",
         c.readings, c.cycles, c.echoes, c.unconfirmed, c.no_echo, c.invalid, s.accepted, s.gated, s.lost.0, s.lost.1
     );
-    let x = s.state.map(|v| Fixed6(f64::from(v)));
+    let x = s.state.map(Fixed6);
     hprintln!(
         "pose error against the ground truth: RMSE {} m and {} deg, max {} m, final {} m and {} deg; final estimate ({}, {}) m, {} rad",
         Fixed6(s.score.position_rmse_m),

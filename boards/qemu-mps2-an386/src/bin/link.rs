@@ -166,8 +166,8 @@ fn main() -> ! {
                 if !s.passed {
                     hprintln!(
                         "FAIL: beyond the scenario's bounds ({} m, {} deg)",
-                        Fixed6(h.bound_position_m.into()),
-                        Fixed6(h.bound_heading_deg.into())
+                        Fixed6(h.bound_position_m),
+                        Fixed6(h.bound_heading_deg)
                     );
                 }
                 s.passed
