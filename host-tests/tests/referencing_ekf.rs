@@ -431,6 +431,60 @@ fn huber_weights_a_doubtful_reading_down_as_the_textbook_says() {
     assert!(moved >= 12, "only {moved} readings past the threshold");
 }
 
+/// A reading the verdict did not confirm (`Ekf::update_unconfirmed`): the
+/// textbook f64 EKF whose range variance is `unconfirmed_variance_scale`
+/// times the documented one, in the gate as in the correction; so it moves
+/// the state less than a confirmed reading does, and one the plain gate
+/// refuses (3σ of the plain innovation) can pass, weakly.
+#[test]
+fn an_unconfirmed_reading_enters_as_the_textbook_with_its_variance_scaled() {
+    let ring = pioneer_m();
+    let walls = corridor();
+    let (start, sigma) = ([0.2f32, -0.1, 0.02], [0.1f32, 0.1, 0.05]);
+    // Off by default (1); measured at 16 (docs/real-buildings.md).
+    let gamma = 16.0f32;
+    let cfg = EkfConfig { unconfirmed_variance_scale: gamma, ..CFG };
+    let wide = EkfConfig { sigma_range_m: CFG.sigma_range_m * gamma.sqrt(), ..CFG };
+    let (mut passed_wide, mut smaller) = (0, 0);
+    for (n, &(i, w)) in SEES.iter().enumerate() {
+        for c in [0.5f64, 1.0, 2.0, 3.0, -1.5, -3.0] {
+            let t6 = T64::of(&walls[w]);
+            let (mut weak, mut full) = (Ekf::new(start, sigma, cfg).unwrap(), Ekf::new(start, sigma, CFG).unwrap());
+            let mut r = RefEkf::new(x64(&start), sigma.map(|v| v as f64), wide);
+            let (h, sv) = innovation_var(&weak, ring[i], &walls[w], 0.8);
+            let z = (h + c * sv.sqrt()) as f32;
+            let got = weak.update_unconfirmed(z, 0.8, mount32(ring[i]), &walls[w]);
+            let plain = full.update(z, 0.8, mount32(ring[i]), &walls[w]);
+            let (ok, _, _) = r.update(z as f64, 0.8, ring[i], &t6);
+            assert_eq!(ok, matches!(got, Update::Accepted { .. }), "reading {n} at {c}σ: {got:?}");
+            if !ok {
+                continue;
+            }
+            let (x, p) = (weak.state(), to_f64(&weak.covariance()));
+            for a in 0..3 {
+                assert!((x[a] as f64 - r.x[a]).abs() <= 2e-6, "{c}σ: state {x:?} vs {:?}", r.x);
+                for b in 0..3 {
+                    let sc = (r.p[a][a] * r.p[b][b]).sqrt();
+                    assert!((p[a][b] - r.p[a][b]).abs() / sc <= 1e-4, "{c}σ: P {p:?} vs {:?}", r.p);
+                }
+            }
+            match plain {
+                Update::Gated { .. } => passed_wide += 1,
+                // Past Huber's threshold the plain one is weighted down by its
+                // own innovation; below it, the scaled variance must move less.
+                Update::Accepted { nis, .. } if nis > CFG.robust_nis => {}
+                Update::Accepted { .. } => {
+                    let step = |e: &Ekf| (0..2).map(|a| (e.state()[a] - start[a]).powi(2)).sum::<f32>();
+                    assert!(step(&weak) < step(&full), "{c}σ: the unconfirmed reading moved the state as far");
+                    smaller += 1;
+                }
+                Update::Unusable => panic!("{c}σ: {plain:?}"),
+            }
+        }
+    }
+    assert!(smaller >= 12 && passed_wide >= 2, "{smaller} smaller steps, {passed_wide} past the plain gate");
+}
+
 // ---------------------------------------------------------------------------
 // 3. The χ² gate and the NIS.
 

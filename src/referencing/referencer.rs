@@ -104,7 +104,12 @@ impl Referencer {
         if let (Reading::Echo { range_mm }, Some(p), Some(t)) = (reading, r.prediction.as_ref(), r.target.as_ref()) {
             if r.verdict != Verdict::Inconclusive {
                 let z = range_mm as f32 / 1000.0;
-                r.update = Some(self.ekf.update(z, p.kappa.to_num::<f32>(), MountM::from(mount), t));
+                let (kappa, mount) = (p.kappa.to_num::<f32>(), MountM::from(mount));
+                r.update = Some(if r.verdict == Verdict::Confirmed {
+                    self.ekf.update(z, kappa, mount, t)
+                } else {
+                    self.ekf.update_unconfirmed(z, kappa, mount, t)
+                });
             }
         }
         Ok(r)

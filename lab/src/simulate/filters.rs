@@ -391,6 +391,8 @@ pub struct Switches {
     /// With the place test, the nodes the sweep scores a tracking cycle to
     /// propose rivals to the tracked pose (`PlaceTest::rival_nodes`; 0: none).
     pub rival_nodes: u16,
+    /// `EkfConfig::unconfirmed_variance_scale`; `None`: the default.
+    pub unconfirmed_variance_scale: Option<f32>,
 }
 
 impl Switches {
@@ -405,6 +407,7 @@ impl Switches {
         bank: None,
         place_test: None,
         rival_nodes: 0,
+        unconfirmed_variance_scale: None,
     };
 }
 
@@ -510,6 +513,9 @@ fn run_with<M: MapSource, const N: usize>(
     }
     if !start.switches.calibration {
         cfg.calibration = CalibrationConfig::OFF;
+    }
+    if let Some(x) = start.switches.unconfirmed_variance_scale {
+        cfg.unconfirmed_variance_scale = x;
     }
     // Checked as `Ekf::new` checks it, for the message.
     Ekf::new(start.pose, start.sigma, cfg).map_err(|e| format!("start: {e:?}"))?;
