@@ -380,16 +380,18 @@ fn parse_bound(s: &str) -> Result<f32, String> {
 /// `--unconfirmed-variance-scale`: finite and at least 1 (below it an
 /// unconfirmed reading would weigh more than a confirmed one).
 fn parse_variance_scale(s: &str) -> Result<f32, String> {
-    match s.parse::<f32>() {
-        Ok(x) if x.is_finite() && x >= 1.0 => Ok(x),
-        _ => Err(format!("{s:?} is not a finite number ≥ 1")),
-    }
+    parse_at_least(s, 1.0)
 }
 
 /// `--handoff-z`: finite and not negative.
 fn parse_handoff_z(s: &str) -> Result<f32, String> {
+    parse_at_least(s, 0.0)
+}
+
+/// A finite number no smaller than `min`.
+fn parse_at_least(s: &str, min: f32) -> Result<f32, String> {
     match s.parse::<f32>() {
-        Ok(z) if z.is_finite() && z >= 0.0 => Ok(z),
-        _ => Err(format!("{s:?} is not a finite number ≥ 0")),
+        Ok(x) if x.is_finite() && x >= min => Ok(x),
+        _ => Err(format!("{s:?} is not a finite number ≥ {min}")),
     }
 }

@@ -165,7 +165,7 @@ fn replay_finds_itself_in_a_log() {
 fn bad_starts_and_kidnaps_fail_clearly_and_write_nothing() {
     let dir = scratch("bad");
     let trace = dir.join("trace.csv");
-    let cases: [(&[&str], &str); 8] = [
+    let cases: [(&[&str], &str); 10] = [
         (&["--start", "500,-40,0,0.5,10"], "not in the map's free space"),
         (&["--start", "somewhere"], "--start \"somewhere\": expected unknown"),
         (&["--start", "1,2,3,-1,10"], "σ_m must be within"),
@@ -174,6 +174,8 @@ fn bad_starts_and_kidnaps_fail_clearly_and_write_nothing() {
         (&["--bank", "9"], "9 is not in 0..=8"),
         (&["--handoff-z=nan"], "\"nan\" is not a finite number ≥ 0"),
         (&["--handoff-z=-0.5"], "\"-0.5\" is not a finite number ≥ 0"),
+        (&["--unconfirmed-variance-scale=0.5"], "\"0.5\" is not a finite number ≥ 1"),
+        (&["--unconfirmed-variance-scale=inf"], "\"inf\" is not a finite number ≥ 1"),
     ];
     let map = depot();
     for (extra, message) in cases {

@@ -64,7 +64,7 @@ fn quotient_f32(num: i64, den: i64) -> f32 {
     // every shifted term below 2^65: u128 holds them, and no f32 result
     // is subnormal or infinite.
     let mut e = b.leading_zeros() as i32 - a.leading_zeros() as i32;
-    let (mut r, mut d) = if e >= 0 { (a, b << e) } else { (a << -e, b) };
+    let (mut r, d) = if e >= 0 { (a, b << e) } else { (a << -e, b) };
     if r < d {
         r <<= 1;
         e -= 1;
@@ -79,9 +79,9 @@ fn quotient_f32(num: i64, den: i64) -> f32 {
         }
         r <<= 1;
     }
-    d = u128::from(r != 0); // sticky: a remainder beyond the round bit
+    let sticky = r != 0; // a remainder beyond the round bit
     let (mut mant, round) = (q >> 1, q & 1);
-    if round == 1 && (d == 1 || mant & 1 == 1) {
+    if round == 1 && (sticky || mant & 1 == 1) {
         mant += 1;
         if mant == 1 << 24 {
             mant >>= 1;
