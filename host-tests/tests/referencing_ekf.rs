@@ -700,6 +700,48 @@ fn a_confident_filter_rejecting_everything_becomes_lost_then_recovers() {
     assert_eq!(ekf.lost_count(), 1);
 }
 
+/// One cycle of unconfirmed readings, each `k` standard deviations of its
+/// plain innovation (S at the documented variance, the textbook's) beyond
+/// what the estimate predicts.
+fn weak_cycle(ekf: &mut Ekf, k: f64) -> Vec<Update> {
+    let ring = pioneer_m();
+    let walls = room();
+    CYCLE
+        .iter()
+        .map(|&(i, w)| {
+            let (h, s) = innovation_var(ekf, ring[i], &walls[w], 1.0);
+            ekf.update_unconfirmed((h + k * s.sqrt()) as f32, 1.0, mount32(ring[i]), &walls[w])
+        })
+        .collect()
+}
+
+/// The lost monitor judges a cycle at the plain variance: readings only
+/// their scaled variance lets in (5σ of the plain innovation: past the plain
+/// gate, inside the one 16 times wider) are accepted but not validating, so
+/// a confident filter fed nothing else becomes lost on the same cycle as it
+/// does when the gate refuses them; at 0.5σ every one validates.
+#[test]
+fn readings_only_their_scaled_variance_lets_in_do_not_keep_the_filter_found() {
+    let cfg = EkfConfig { unconfirmed_variance_scale: 16.0, ..CFG };
+    let n = CFG.lost_cycles as u32;
+    let mut ekf = Ekf::new([0.0, 0.0, 0.0], [0.01, 0.01, 0.005], cfg).unwrap();
+    for c in 1..=n + 2 {
+        let u = weak_cycle(&mut ekf, 5.0);
+        // Hand check: 5² = 25 > gate 6.63 > 25 / 16.
+        assert!(u.iter().all(|u| matches!(u, Update::Accepted { .. })), "cycle {c}: {u:?}");
+        let counts = ekf.end_cycle();
+        assert_eq!((counts.tested, counts.accepted, counts.weak, counts.validated()), (8, 8, 8, 0), "cycle {c}");
+        assert_eq!(ekf.is_lost(), c >= n, "cycle {c}");
+    }
+    let mut ekf = Ekf::new([0.0, 0.0, 0.0], [0.01, 0.01, 0.005], cfg).unwrap();
+    for c in 1..=n + 2 {
+        weak_cycle(&mut ekf, 0.5);
+        let counts = ekf.end_cycle();
+        assert_eq!((counts.accepted, counts.weak, counts.validated()), (8, 0, 8), "cycle {c}");
+        assert!(!ekf.is_lost(), "cycle {c}");
+    }
+}
+
 /// A filter that knows it is unsure (σ > lost_max_sigma_m) expects
 /// rejections: not lost however many cycles they last.
 #[test]

@@ -188,6 +188,18 @@ pub struct CycleUpdates {
     pub tested: u16,
     /// Readings it accepted.
     pub accepted: u16,
+    /// Of those accepted, the ones only their scaled variance let in
+    /// ([`Ekf::update_unconfirmed`]): the plain gate would have refused
+    /// them, so the lost monitor does not count them as validating.
+    pub weak: u16,
+}
+
+impl CycleUpdates {
+    /// The readings the plain gate would have accepted: what the lost
+    /// monitor judges the cycle by.
+    pub fn validated(&self) -> u16 {
+        self.accepted.saturating_sub(self.weak)
+    }
 }
 
 /// The filter.
@@ -357,6 +369,8 @@ impl Ekf {
         // The recovery's record takes the reading at the variance it entered with.
         s2 *= scale;
         let nu = z - h;
+        // The plain gate's verdict, for the lost monitor: S at the plain variance.
+        let plain_s = if scale > 1.0 { Some(self.g.spread(&hj) + s2 / scale) } else { None };
         let c = self.g.correct(nu, hj, s2, self.cfg.gate, self.cfg.robust_nis);
         if c == Correction::Unusable {
             return Update::Unusable;
@@ -366,6 +380,10 @@ impl Ekf {
         match c {
             Correction::Accepted { nis, dx } => {
                 self.cycle.accepted = self.cycle.accepted.saturating_add(1);
+                // NaN (S not positive) counts as weak: not validating.
+                if plain_s.is_some_and(|s| !(nu * nu / s <= self.cfg.gate)) {
+                    self.cycle.weak = self.cycle.weak.saturating_add(1);
+                }
                 self.recent.shift(dx);
                 self.condition();
                 Update::Accepted { innovation: nu, nis }
@@ -384,7 +402,8 @@ impl Ekf {
         self.cycle = CycleUpdates::default();
         let sigma = sqrt(self.g.p[0][0] + self.g.p[1][1]);
         let tested = c.tested >= self.cfg.lost_min_tested;
-        let frac = if c.tested == 0 { 0.0 } else { c.accepted as f32 / c.tested as f32 };
+        let validated = c.validated();
+        let frac = if c.tested == 0 { 0.0 } else { validated as f32 / c.tested as f32 };
         let mut dropped = false;
         if tested {
             let (slow, fast) = self.rates;
@@ -404,11 +423,11 @@ impl Ekf {
         let bad = frac <= self.cfg.lost_max_accepted || dropped;
         if tested && bad && (self.lost || sigma < self.cfg.lost_max_sigma_m) {
             self.bad_run = self.bad_run.saturating_add(1);
-        } else if tested || c.accepted > 0 {
+        } else if tested || validated > 0 {
             // Readings validate again (or the filter is unsure enough that
             // rejections are expected): not lost.
             self.bad_run = 0;
-            if self.lost && c.accepted >= 2 {
+            if self.lost && validated >= 2 {
                 self.lost = false;
             }
         }
