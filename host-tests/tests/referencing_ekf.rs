@@ -441,7 +441,7 @@ fn an_unconfirmed_reading_enters_as_the_textbook_with_its_variance_scaled() {
     let ring = pioneer_m();
     let walls = corridor();
     let (start, sigma) = ([0.2f32, -0.1, 0.02], [0.1f32, 0.1, 0.05]);
-    // Off by default (1); measured at 16 (docs/real-buildings.md).
+    // The default, 16 (docs/real-buildings.md), named: the test's oracle is built from it.
     let gamma = 16.0f32;
     let cfg = EkfConfig { unconfirmed_variance_scale: gamma, ..CFG };
     let wide = EkfConfig { sigma_range_m: CFG.sigma_range_m * gamma.sqrt(), ..CFG };

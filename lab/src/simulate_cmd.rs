@@ -125,8 +125,8 @@ pub struct SimulateArgs {
     place_rivals: Option<u16>,
     /// A reading the verdict does not confirm enters the EKF with its
     /// variance this many times larger (`EkfConfig::unconfirmed_variance_scale`,
-    /// issue #49 item 3; default 1, as a confirmed one; 16 measured in
-    /// docs/real-buildings.md).
+    /// issue #49 item 3; default 16, measured in docs/real-buildings.md;
+    /// 1: as a confirmed one).
     #[arg(long = "unconfirmed-variance-scale", value_name = "X", value_parser = parse_variance_scale)]
     unconfirmed_variance_scale: Option<f32>,
     /// Writes one CSV row per ring cycle: the mode, the estimate, its σ and

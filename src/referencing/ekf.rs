@@ -63,10 +63,10 @@ pub struct EkfConfig {
     /// (a dense lab: a third of the accepted readings, the filter worse
     /// than the odometry on 6 of 10 runs; docs/real-buildings.md). Weighted
     /// down, not refused: a filter a little off confirms nothing, and must
-    /// still be pulled back. Default 1 (off) until its side effects are
-    /// understood: 16 holds the lab and the simulator's tracking, but at
-    /// clutter 0.8 a depot run was lost fewer times and ended off while
-    /// tracking (`simulate --unconfirmed-variance-scale 16`; issue #49).
+    /// still be pulled back. Default 16 (σ × 4; 4 and 8 were too little,
+    /// 64 lost a depot run); 1 turns it off. The lost monitor judges
+    /// cycles at the plain variance ([`CycleUpdates::weak`]), so the weak
+    /// readings cannot keep a wrong filter found (issue #49).
     pub unconfirmed_variance_scale: f32,
     /// The smallest variance kept on the diagonal, so the covariance stays
     /// positive definite in `f32`.
@@ -132,7 +132,7 @@ impl EkfConfig {
         point_variance_scale: 4.0,
         gate: 6.63,
         robust_nis: 2.5,
-        unconfirmed_variance_scale: 1.0,
+        unconfirmed_variance_scale: 16.0,
         min_var: [1e-8, 1e-8, 1e-9],
         max_var: [100.0, 100.0, 10.0],
         lost_min_tested: 6,
