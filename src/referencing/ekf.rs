@@ -381,7 +381,11 @@ impl Ekf {
             Correction::Accepted { nis, dx } => {
                 self.cycle.accepted = self.cycle.accepted.saturating_add(1);
                 // NaN (S not positive) counts as weak: not validating.
-                if plain_s.is_some_and(|s| !(nu * nu / s <= self.cfg.gate)) {
+                let past_plain_gate = |s: f32| {
+                    let nis = nu * nu / s;
+                    nis.is_nan() || nis > self.cfg.gate
+                };
+                if plain_s.is_some_and(past_plain_gate) {
                     self.cycle.weak = self.cycle.weak.saturating_add(1);
                 }
                 self.recent.shift(dx);
