@@ -64,7 +64,7 @@ pub struct EkfConfig {
     /// than the odometry on 6 of 10 runs; docs/real-buildings.md). Weighted
     /// down, not refused: a filter a little off confirms nothing, and must
     /// still be pulled back. Default 16 (σ × 4; 4 and 8 were too little,
-    /// 64 lost a depot run); 1 turns it off. The lost monitor judges
+    /// 64 sent a depot run 0.5 m off); 1 turns it off. The lost monitor judges
     /// cycles at the plain variance ([`CycleUpdates::weak`]), so the weak
     /// readings cannot keep a wrong filter found (issue #49).
     pub unconfirmed_variance_scale: f32,
@@ -369,8 +369,6 @@ impl Ekf {
         // The recovery's record takes the reading at the variance it entered with.
         s2 *= scale;
         let nu = z - h;
-        // The plain gate's verdict, for the lost monitor: S at the plain variance.
-        let plain_s = if scale > 1.0 { Some(self.g.spread(&hj) + s2 / scale) } else { None };
         let c = self.g.correct(nu, hj, s2, self.cfg.gate, self.cfg.robust_nis);
         if c == Correction::Unusable {
             return Update::Unusable;
@@ -378,15 +376,15 @@ impl Ekf {
         self.cycle.tested = self.cycle.tested.saturating_add(1);
         self.recent.push(hj, nu, s2);
         match c {
-            Correction::Accepted { nis, dx } => {
+            Correction::Accepted { nis, dx, spread } => {
                 self.cycle.accepted = self.cycle.accepted.saturating_add(1);
-                // NaN (S not positive) counts as weak: not validating.
-                let past_plain_gate = |s: f32| {
-                    let nis = nu * nu / s;
-                    nis.is_nan() || nis > self.cfg.gate
-                };
-                if plain_s.is_some_and(past_plain_gate) {
-                    self.cycle.weak = self.cycle.weak.saturating_add(1);
+                // The plain gate's verdict, for the lost monitor: S at the
+                // plain variance. NaN (S not positive) counts as weak.
+                if scale > 1.0 {
+                    let plain_nis = nu * nu / (spread + s2 / scale);
+                    if plain_nis.is_nan() || plain_nis > self.cfg.gate {
+                        self.cycle.weak = self.cycle.weak.saturating_add(1);
+                    }
                 }
                 self.recent.shift(dx);
                 self.condition();

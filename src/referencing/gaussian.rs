@@ -86,6 +86,9 @@ pub enum Correction {
         nis: f32,
         /// The state's change.
         dx: [f32; 3],
+        /// `H P Hᵀ` before the correction ([`PoseGaussian::spread`]), so a
+        /// caller can judge the reading at another variance.
+        spread: f32,
     },
     /// The gate rejected it; nothing changed.
     Gated {
@@ -161,7 +164,8 @@ impl PoseGaussian {
         for (i, row) in self.p.iter().enumerate() {
             ph[i] = row[0] * hj[0] + row[1] * hj[1] + row[2] * hj[2];
         }
-        let s = hj[0] * ph[0] + hj[1] * ph[1] + hj[2] * ph[2] + s2;
+        let spread = hj[0] * ph[0] + hj[1] * ph[1] + hj[2] * ph[2];
+        let s = spread + s2;
         if !s.is_finite() || s <= 0.0 {
             return Correction::Unusable;
         }
@@ -200,7 +204,7 @@ impl PoseGaussian {
             }
         }
         self.x = next;
-        Correction::Accepted { nis, dx }
+        Correction::Accepted { nis, dx, spread }
     }
 
     /// Symmetric, the diagonal within `min_var..=max_var`, every
@@ -306,7 +310,7 @@ mod tests {
         let mut g = PoseGaussian::new([1.0, 2.0, 0.0], diag([px, 0.09, 0.01]));
         let c = g.correct(0.1, [1.0, 0.0, 0.0], r, 6.63, f32::INFINITY);
         let k = px / (px + r);
-        let Correction::Accepted { nis, dx } = c else { panic!("{c:?}") };
+        let Correction::Accepted { nis, dx, .. } = c else { panic!("{c:?}") };
         assert!((nis - 0.01 / 0.05).abs() < 1e-6);
         assert!((dx[0] - k * 0.1).abs() < 1e-7 && dx[1] == 0.0 && dx[2] == 0.0, "{dx:?}");
         assert!((g.x[0] - (1.0 + k * 0.1)).abs() < 1e-6 && g.x[1] == 2.0);
