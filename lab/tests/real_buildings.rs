@@ -38,6 +38,12 @@ fn a_lidar_run_becomes_a_map_and_a_sonar_run_echoloc_holds_on() {
     let accepted: Vec<&Vec<&str>> = rows.iter().filter(|r| r[10] == "accepted").collect();
     assert_eq!(accepted.len() as f64, num(&v, "ekf.accepted"));
     assert!(accepted.iter().all(|r| !r[4].is_empty()), "an update without a prediction");
+    // The weak ones (only the unconfirmed variance scale let them in) are
+    // among the accepted readings the verdict did not confirm, and there
+    // are some on this cluttered run.
+    let weak = num(&v, "ekf.weak");
+    let unconfirmed = accepted.iter().filter(|r| r[9] != "Confirmed").count() as f64;
+    assert!(weak > 0.0 && weak <= unconfirmed, "weak {weak}, accepted unconfirmed {unconfirmed}");
     for r in rows.iter().filter(|r| r[9] == "Confirmed") {
         let (z, h): (f64, f64) = (r[3].parse().unwrap(), r[4].parse().unwrap());
         assert!((z - h).abs() <= 100.0, "{r:?}");
@@ -94,6 +100,10 @@ fn a_lidar_run_becomes_a_map_and_a_sonar_run_echoloc_holds_on() {
         };
         assert_ne!(path(&o), path(&v), "{switch} changed nothing");
     }
+    // Unconfirmed readings at their plain variance: none is weak.
+    let plain = simulate(&[&run[..], &["--readings", "laser", "--unconfirmed-variance-scale", "1"]].concat());
+    assert_eq!(num(&plain, "ekf.weak"), 0.0, "{}", plain["ekf"]);
+    assert!(num(&plain, "ekf.accepted") > 0.0, "{}", plain["ekf"]);
 
     // The harsh sonar (issue #49 item 2) confirms far fewer readings at the
     // true pose, and the furniture the laser missed is a large part of it.

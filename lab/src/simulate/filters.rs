@@ -91,6 +91,10 @@ pub struct Trace {
     pub accepted: u64,
     /// Readings its gate rejected.
     pub gated: u64,
+    /// Of those accepted, the ones only their scaled variance let in
+    /// (`CycleUpdates::weak`: not confirmed at the estimate, and past the
+    /// plain gate); the lost monitor does not count them as validating.
+    pub weak: u64,
     /// Times it became lost.
     pub lost_count: u32,
     /// Times it stopped being lost.
@@ -561,6 +565,7 @@ fn run_with<M: MapSource, const N: usize>(
     let mut close = |loc: &mut Localizer<N>, t: &mut Trace, last: Option<(f64, Option<[f64; 3]>)>, travelled: f64| {
         let before = loc.particles().poses().to_vec();
         let rep = loc.end_cycle(field).map_err(|e| format!("{e}"))?;
+        t.weak += u64::from(rep.updates.weak);
         let (time_s, truth) = last.unwrap_or((0.0, None));
         if rep.handoff {
             t.clouds.push(Cloud { time_s, why: "handoff", particles: before });

@@ -152,6 +152,7 @@ pub fn report(t: &Trace, run: Option<&SimRun>) -> Value {
             json!({
                 "accepted": t.accepted,
                 "gated": t.gated,
+                "weak": t.weak,
                 "lost_raised": t.lost_count,
                 "lost_cleared": t.lost_cleared,
                 "cycles_lost": t.cycles_lost,
