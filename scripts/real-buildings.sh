@@ -18,6 +18,10 @@
 #                                             # both firings: a line a run (found at, wrong hand-offs, far-off
 #                                             # cycles and their share reported searching or lost), then a
 #                                             # summary (e.g. --place-test 150: issue #48's hand-off)
+#   bash scripts/real-buildings.sh --judge 5 [simulate args]   # from the true start, seeds 1..5: the share of
+#                                             # the far-off cycles reported searching or lost, of the others
+#                                             # reported tracking, and the runs that end off while tracking
+#                                             # (e.g. --place-test 150: issue #48's judge of the tracked pose)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 data=../shared/data/real
@@ -71,6 +75,27 @@ print(*sys.argv[1:], '%.1f' % f['distance_m'] if f else 'never', len(l['wrong_ha
       '%.3f' % (l['final_error_m'] if l['final_error_m'] is not None else -1), int(bool(l['ended_off'])))" --start unknown "$@" |
     tee /dev/stderr | awk '{ k = $1 " " $2; n[k]++; if ($4 != "never" && $4 <= 60) f60[k]++; if ($5 > 0) w[k]++; e[k] += $9 }
     END { for (k in n) printf "%s: %d runs, found within 60 m %d, runs with a wrong hand-off %d, ended off %d\n", k, n[k], f60[k], w[k], e[k] }' | sort
+  exit 0
+fi
+
+if [ "${1:-}" = "--judge" ]; then
+  # Whether it knows when it is lost (issue #48), from the true start: of
+  # the cycles more than 0.5 m off, the share reported searching or lost;
+  # of the others, the share reported tracking; and how each run ends.
+  n=${2:?--judge N}
+  shift 2
+  each_run "$n" "
+import json, sys
+r = json.load(sys.stdin); l = r['localization']
+off, n = l['off_cycles'], l['cycles']
+known = l['off_cycles_known'] if off else 1.0
+on_tracking = (l['modes']['tracking'] - off * (1 - known)) / (n - off) if n > off else 0.0
+print(*sys.argv[1:], '%.3f' % r['ekf']['position_rmse_m'], off, '%.3f' % known, '%.3f' % on_tracking,
+      l['final_mode'], '%.2f' % l['final_error_m'], int(bool(l['ended_off']) and l['final_mode'] == 'tracking'))" "$@" |
+    tee /dev/stderr | awk '{ k = $1 " " $2; n[k]++; if ($5 > 0) { o[k]++; kn[k] += $6; if (!(k in lo) || $6 < lo[k]) lo[k] = $6 }
+    t[k] += $7; e[k] += $10 }  # the shares: means over the runs
+    END { for (k in n) printf "%s: %d runs, %d with cycles off, their far-off cycles reported searching or lost %s; the other cycles reported tracking %.1f %%; ended off while tracking %d\n",
+      k, n[k], o[k], o[k] ? sprintf("%.1f %% (mean over them; worst run %.1f %%)", 100 * kn[k] / o[k], 100 * lo[k]) : "-", 100 * t[k] / n[k], e[k] }' | sort
   exit 0
 fi
 

@@ -574,7 +574,8 @@ fn the_place_test_never_hands_off_on_readings_that_fit_no_place() {
     }
 }
 
-/// A bound or a null memory the test cannot use is refused at the start.
+/// A bound, a calm's `calm_behind` or a null memory the test cannot use is
+/// refused at the start.
 #[test]
 fn the_place_test_refuses_bad_settings() {
     let depot = Depot::load();
@@ -583,6 +584,9 @@ fn the_place_test_refuses_bad_settings() {
         PlaceTest { bound: 0.0, ..PlaceTest::DEFAULT },
         PlaceTest { bound: f32::NAN, ..PlaceTest::DEFAULT },
         PlaceTest { null_memory: 3.0, ..PlaceTest::DEFAULT },
+        PlaceTest { calm_behind: -1.0, ..PlaceTest::DEFAULT },
+        PlaceTest { calm_behind: f32::NAN, ..PlaceTest::DEFAULT },
+        PlaceTest { calm_behind: PlaceTest::DEFAULT.bound, ..PlaceTest::DEFAULT },
     ] {
         let mut loc = place_test_localizer::<64>(1, bad);
         assert_eq!(loc.start(Start::Unknown, map.field()), Err(LocalizeError::PlaceTest), "{bad:?}");
@@ -599,9 +603,28 @@ fn the_place_test_refuses_bad_settings() {
 /// it trails the null: only once the readings fit again, near the truth.
 #[test]
 fn the_place_test_judges_the_tracked_pose_against_the_null() {
+    judged_against_the_null(20.0, 0.0);
+    // With `calm_behind`, the search ends without a hand-off while the EKF
+    // trails the null by at most that: at a bound of 40, the calm comes
+    // on cycles the EKF still trails (by at most 30 nats) and before the
+    // hand-off that ends the search when the calm waits for a CUSUM at 0.
+    let (strict, strict_by_handoff, _) = judged_against_the_null(40.0, 0.0);
+    let (tolerant, tolerant_by_handoff, trailed) = judged_against_the_null(40.0, 30.0);
+    assert!(
+        strict_by_handoff && !tolerant_by_handoff,
+        "hand-off at 0: {strict_by_handoff}, at 30: {tolerant_by_handoff}"
+    );
+    assert!(tolerant < strict, "calmed at cycle {tolerant}, the hand-off at {strict}");
+    assert!(trailed > 0.0 && trailed <= 30.0, "the calm's cycles trailed the null by up to {trailed}");
+}
+
+/// The run of `the_place_test_judges_the_tracked_pose_against_the_null`:
+/// the cycle the search ended, whether by a hand-off, and how far the EKF
+/// trailed the null at most over the calm's cycles (0 for a hand-off).
+fn judged_against_the_null(bound: f32, calm_behind: f32) -> (usize, bool, f32) {
     let depot = Depot::load();
     let map = depot.view();
-    let test = PlaceTest { bound: 20.0, ..PlaceTest::DEFAULT };
+    let test = PlaceTest { bound, calm_behind, ..PlaceTest::DEFAULT };
     let cfg = LocalizerConfig { place_test: Some(test), fit_cycles: 0, ..LocalizerConfig::DEFAULT };
     let mut loc = Box::new(Localizer::<1024>::new(cfg, EkfConfig::DEFAULT, VerdictConfig::POLAROID, 5));
     loc.start(Start::Known { pose: along(0), sigma: [0.05, 0.05, 0.02] }, map.field()).unwrap();
@@ -613,6 +636,10 @@ fn the_place_test_judges_the_tracked_pose_against_the_null() {
     let mut returned = None;
     let mut last = 0.0f32;
     let mut trailed_awake = 0;
+    // The last cycles' `behind`, for the calm's.
+    let mut recent = [0.0f32; 8];
+    let mut trailed = 0.0f32;
+    let mut by_handoff = false;
     for c in 0..cycles {
         loc.odometry(&Motion { dx: if c == 0 { 0.0 } else { 0.25 }, dy: 0.0, dphi: 0.0 }).unwrap();
         let reads: Vec<(Mount, Reading)> = if (noise..back).contains(&c) {
@@ -625,6 +652,8 @@ fn the_place_test_judges_the_tracked_pose_against_the_null() {
         }
         let rep = loc.end_cycle(map.field()).unwrap();
         assert!(rep.behind >= 0.0, "cycle {c}: {}", rep.behind);
+        recent.rotate_right(1);
+        recent[0] = rep.behind;
         match (woke, returned) {
             (None, _) if c < noise => {
                 assert_eq!(rep.mode, Mode::Tracking, "cycle {c}");
@@ -641,23 +670,35 @@ fn the_place_test_judges_the_tracked_pose_against_the_null() {
             }
             (Some(_), None) if rep.handoff || rep.calmed => {
                 assert!(c >= back, "cycle {c}: back to tracking on readings that fit nothing ({rep:?})");
-                assert!(rep.handoff || rep.behind == 0.0, "cycle {c}: calmed trailing the null by {}", rep.behind);
+                assert!(
+                    rep.handoff || rep.behind <= calm_behind,
+                    "cycle {c}: calmed trailing the null by {} (calm_behind {calm_behind})",
+                    rep.behind
+                );
+                by_handoff = rep.handoff;
+                if rep.calmed {
+                    // Every cycle the calm counted was level by `calm_behind`.
+                    let calm = &recent[..usize::from(cfg.calm_cycles)];
+                    trailed = calm.iter().fold(0.0, |a, &b| a.max(b));
+                    assert!(trailed <= calm_behind, "cycle {c}: a calm over {calm:?} (calm_behind {calm_behind})");
+                }
                 let (x, t) = (loc.state(), along(c));
                 assert!((x[0] - t[0]).hypot(x[1] - t[1]) < 0.3, "cycle {c}: {x:?} against {t:?}");
                 returned = Some(c);
             }
             (Some(_), None) => {
                 assert_eq!(loc.mode(), Mode::Searching, "cycle {c}");
-                trailed_awake += usize::from(rep.behind > 0.0 && c >= back);
+                trailed_awake += usize::from(rep.behind > calm_behind && c >= back);
             }
             (Some(_), Some(_)) => {}
         }
     }
     let w = woke.expect("the tracked pose was never found trailing the null");
     assert!(w < noise + 12, "woke at cycle {w}, {} cycles into the noise", w - noise);
-    returned.expect("never back to tracking once the readings fit again");
+    let r = returned.expect("never back to tracking once the readings fit again");
     // The readings fit again for some cycles while the EKF still trailed.
-    assert!(trailed_awake > 0, "the EKF caught up with the null at once");
+    assert!(trailed_awake > 0, "the EKF caught up with the null at once (calm_behind {calm_behind})");
+    (r, by_handoff, trailed)
 }
 
 /// Tracking keeps its rivals (issue #48 item 4): with `rival_nodes`, the

@@ -123,6 +123,18 @@ pub struct SimulateArgs {
     /// default 0, none).
     #[arg(long = "place-rivals", value_name = "N", requires = "place_test")]
     place_rivals: Option<u16>,
+    /// With --place-test: the share of the readings a place takes to be the
+    /// echo the field expects, the rest scored as the null scores them
+    /// (`PlaceTest::hit_share`, 0 < W < 1; default 0.5), to measure what it
+    /// does.
+    #[arg(long = "place-hit-share", value_name = "W", requires = "place_test", value_parser = parse_share)]
+    place_hit_share: Option<f32>,
+    /// With --place-test: after a wake-up the search ends without a
+    /// hand-off only on cycles the EKF trails the null by at most X nats
+    /// (`PlaceTest::calm_behind`, 0 ≤ X below the bound; default 0), to
+    /// measure what it does.
+    #[arg(long = "place-calm-behind", value_name = "X", requires = "place_test", value_parser = parse_nats)]
+    place_calm_behind: Option<f32>,
     /// A reading the verdict does not confirm enters the EKF with its
     /// variance this many times larger (`EkfConfig::unconfirmed_variance_scale`,
     /// issue #49 item 3; default 16, measured in docs/real-buildings.md;
@@ -216,6 +228,8 @@ pub fn simulate_cmd(a: &SimulateArgs) -> Result<String, LabError> {
         bank: a.bank,
         place_test: a.place_test,
         rival_nodes: a.place_rivals.unwrap_or(0),
+        hit_share: a.place_hit_share,
+        calm_behind: a.place_calm_behind,
         unconfirmed_variance_scale: a.unconfirmed_variance_scale,
     };
     if let Some(scans) = &scans {
@@ -374,6 +388,21 @@ fn parse_bound(s: &str) -> Result<f32, String> {
     match s.parse::<f32>() {
         Ok(b) if b.is_finite() && b > 0.0 => Ok(b),
         _ => Err(format!("{s:?} is not a finite number of nats > 0")),
+    }
+}
+
+/// `--place-calm-behind`: a finite number of nats, at least 0 (the bound
+/// is checked by the localizer, which refuses one at or past it).
+fn parse_nats(s: &str) -> Result<f32, String> {
+    parse_at_least(s, 0.0)
+}
+
+/// `--place-hit-share`: strictly between 0 and 1 (at 0 no place gains on
+/// any reading, at 1 a reading the field does not expect is impossible).
+fn parse_share(s: &str) -> Result<f32, String> {
+    match s.parse::<f32>() {
+        Ok(w) if w > 0.0 && w < 1.0 => Ok(w),
+        _ => Err(format!("{s:?} is not a share strictly between 0 and 1")),
     }
 }
 

@@ -395,6 +395,10 @@ pub struct Switches {
     /// With the place test, the nodes the sweep scores a tracking cycle to
     /// propose rivals to the tracked pose (`PlaceTest::rival_nodes`; 0: none).
     pub rival_nodes: u16,
+    /// With the place test, `PlaceTest::hit_share`; `None`: the default.
+    pub hit_share: Option<f32>,
+    /// With the place test, `PlaceTest::calm_behind`; `None`: the default.
+    pub calm_behind: Option<f32>,
     /// `EkfConfig::unconfirmed_variance_scale`; `None`: the default.
     pub unconfirmed_variance_scale: Option<f32>,
 }
@@ -411,6 +415,8 @@ impl Switches {
         bank: None,
         place_test: None,
         rival_nodes: 0,
+        hit_share: None,
+        calm_behind: None,
         unconfirmed_variance_scale: None,
     };
 }
@@ -535,6 +541,8 @@ fn run_with<M: MapSource, const N: usize>(
         place_test: start.switches.place_test.map(|bound| PlaceTest {
             bound,
             rival_nodes: start.switches.rival_nodes,
+            hit_share: start.switches.hit_share.unwrap_or(PlaceTest::DEFAULT.hit_share),
+            calm_behind: start.switches.calm_behind.unwrap_or(PlaceTest::DEFAULT.calm_behind),
             ..PlaceTest::DEFAULT
         }),
         ..d

@@ -131,6 +131,10 @@ pub struct PlaceTest {
     /// that leads it, the null and every other by the bound takes over.
     /// 0: no rivals; the tracked pose is judged against the null alone.
     pub rival_nodes: u16,
+    /// After a wake-up the search ends without a hand-off (a calm) only on
+    /// cycles the EKF trails the null by at most this, nats (its CUSUM,
+    /// the report's `behind`); at least 0 and below the bound.
+    pub calm_behind: f32,
 }
 
 /// The places the test weighs at once.
@@ -151,6 +155,7 @@ impl PlaceTest {
         hit_share: 0.5,
         null_memory: 400.0,
         rival_nodes: 0,
+        calm_behind: 0.0,
     };
 }
 

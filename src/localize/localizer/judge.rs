@@ -74,9 +74,13 @@ pub(super) struct Judge {
 impl Judge {
     /// An empty bank and a null that has heard nothing, for `test` over
     /// `beam`'s window. Refused ([`LocalizeError::PlaceTest`]): a bound
-    /// that is not a finite positive number, a null memory the null
-    /// refuses.
+    /// that is not a finite positive number, a calm's `calm_behind` not in
+    /// `0..bound`, a null memory the null refuses.
     pub(super) fn new(test: &PlaceTest, beam: &BeamModel) -> Result<Self, LocalizeError> {
+        // Also false for NaN.
+        if !(test.calm_behind >= 0.0 && test.calm_behind < test.bound) {
+            return Err(LocalizeError::PlaceTest);
+        }
         let places = Places::new(test.bound).map_err(|_| LocalizeError::PlaceTest)?;
         let null =
             NullModel::new(beam.r_min_mm, beam.r_max_mm, test.null_memory).map_err(|_| LocalizeError::PlaceTest)?;

@@ -444,10 +444,15 @@ impl<const N: usize> Localizer<N> {
                         // Or the EKF's readings fit it again, by the fit
                         // monitor and by its own gate. With the place test,
                         // either only while the EKF is not behind the null
-                        // (a drifted EKF whose readings fit the gate again
-                        // for a few cycles is no place to go back to).
+                        // by more than `calm_behind` (a drifted EKF whose
+                        // readings fit the gate again for a few cycles is
+                        // no place to go back to).
                         let fits = self.misfit == 0 && !self.referencer.ekf.is_lost();
-                        let level = self.judge.as_ref().is_none_or(|j| j.behind <= 0.0);
+                        let level = self
+                            .judge
+                            .as_ref()
+                            .zip(cfg.place_test.as_ref())
+                            .is_none_or(|(j, t)| j.behind <= t.calm_behind);
                         let calms = self.ekf_awake && (agrees || fits) && level;
                         self.calm = if calms { self.calm.saturating_add(1) } else { 0 };
                         if self.ekf_awake && self.calm >= cfg.calm_cycles {
