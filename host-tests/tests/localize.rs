@@ -574,8 +574,9 @@ fn the_place_test_never_hands_off_on_readings_that_fit_no_place() {
     }
 }
 
-/// A bound, a calm's `calm_behind` or a null memory the test cannot use is
-/// refused at the start.
+/// A setting the test cannot use (a bound, clip, `calm_behind`, hit share,
+/// cluster weight, proposal σ or null memory) is refused at the start; the
+/// edges of each range are taken.
 #[test]
 fn the_place_test_refuses_bad_settings() {
     let depot = Depot::load();
@@ -587,9 +588,29 @@ fn the_place_test_refuses_bad_settings() {
         PlaceTest { calm_behind: -1.0, ..PlaceTest::DEFAULT },
         PlaceTest { calm_behind: f32::NAN, ..PlaceTest::DEFAULT },
         PlaceTest { calm_behind: PlaceTest::DEFAULT.bound, ..PlaceTest::DEFAULT },
+        PlaceTest { hit_share: 0.0, ..PlaceTest::DEFAULT },
+        PlaceTest { hit_share: 1.0, ..PlaceTest::DEFAULT },
+        PlaceTest { hit_share: f32::NAN, ..PlaceTest::DEFAULT },
+        PlaceTest { clip: 0.0, ..PlaceTest::DEFAULT },
+        PlaceTest { clip: f32::INFINITY, ..PlaceTest::DEFAULT },
+        PlaceTest { cluster_weight: f32::NAN, ..PlaceTest::DEFAULT },
+        PlaceTest { cluster_weight: 1.5, ..PlaceTest::DEFAULT },
+        PlaceTest { sweep_sigma: [0.15, f32::NAN, 0.05], ..PlaceTest::DEFAULT },
+        PlaceTest { floor: [0.1, 0.1, -0.05], ..PlaceTest::DEFAULT },
     ] {
         let mut loc = place_test_localizer::<64>(1, bad);
         assert_eq!(loc.start(Start::Unknown, map.field()), Err(LocalizeError::PlaceTest), "{bad:?}");
+    }
+    for good in [
+        PlaceTest::DEFAULT,
+        PlaceTest { calm_behind: 149.0, ..PlaceTest::DEFAULT },
+        PlaceTest { hit_share: 0.999, ..PlaceTest::DEFAULT },
+        PlaceTest { cluster_weight: 0.0, ..PlaceTest::DEFAULT },
+        PlaceTest { cluster_weight: 1.0, ..PlaceTest::DEFAULT },
+        PlaceTest { sweep_sigma: [0.0; 3], floor: [0.0; 3], ..PlaceTest::DEFAULT },
+    ] {
+        let mut loc = place_test_localizer::<64>(1, good);
+        assert_eq!(loc.start(Start::Unknown, map.field()), Ok(()), "{good:?}");
     }
 }
 

@@ -22,9 +22,12 @@ pub enum LocalizeError {
         /// The transducer.
         transducer: u8,
     },
-    /// The place test's settings were refused: a bound that is not a
-    /// finite positive number of nats, or a null memory shorter than the
-    /// null's bins ([`crate::localize::NullModel::new`]).
+    /// The place test's settings were refused ([`super::PlaceTest`]): a
+    /// bound or clip that is not a finite positive number of nats, a
+    /// `calm_behind` not in `0..bound`, a hit share not in `(0, 1)`, a
+    /// cluster weight not in `[0, 1]`, a proposal's σ or floor negative or
+    /// not finite, or a null memory shorter than the null's bins
+    /// ([`crate::localize::NullModel::new`]).
     PlaceTest,
     /// The EKF refused.
     Ekf(EkfError),
@@ -64,9 +67,7 @@ impl core::fmt::Display for LocalizeError {
             Self::RingBeyondField { transducer } => {
                 write!(f, "transducer {transducer} stands beyond the field's reach (compile the map with more reach)")
             }
-            Self::PlaceTest => f.write_str(
-                "the place test's settings: a bound that is not a positive number of nats, or too short a null memory",
-            ),
+            Self::PlaceTest => f.write_str("a place test setting out of its range (see PlaceTest's fields)"),
             Self::Ekf(e) => write!(f, "EKF: {e:?}"),
             Self::Referencer(e) => write!(f, "{e:?}"),
         }

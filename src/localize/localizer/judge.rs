@@ -75,10 +75,24 @@ impl Judge {
     /// An empty bank and a null that has heard nothing, for `test` over
     /// `beam`'s window. Refused ([`LocalizeError::PlaceTest`]): a bound
     /// that is not a finite positive number, a calm's `calm_behind` not in
-    /// `0..bound`, a null memory the null refuses.
+    /// `0..bound`, a hit share not in `(0, 1)`, a clip that is not a finite
+    /// positive number, a cluster weight not in `[0, 1]`, a proposal's σ
+    /// or floor that is negative or not finite, a null memory the null
+    /// refuses.
     pub(super) fn new(test: &PlaceTest, beam: &BeamModel) -> Result<Self, LocalizeError> {
-        // Also false for NaN.
-        if !(test.calm_behind >= 0.0 && test.calm_behind < test.bound) {
+        // Each comparison is also false for NaN. Left through, a NaN σ
+        // would never propose a place (no hand-off, ever) and a hit share
+        // of 1 would let a missed echo correct a place.
+        let fine = test.calm_behind >= 0.0
+            && test.calm_behind < test.bound
+            && test.hit_share > 0.0
+            && test.hit_share < 1.0
+            && test.clip > 0.0
+            && test.clip.is_finite()
+            && test.cluster_weight >= 0.0
+            && test.cluster_weight <= 1.0
+            && test.sweep_sigma.iter().chain(&test.floor).all(|s| *s >= 0.0 && s.is_finite());
+        if !fine {
             return Err(LocalizeError::PlaceTest);
         }
         let places = Places::new(test.bound).map_err(|_| LocalizeError::PlaceTest)?;
