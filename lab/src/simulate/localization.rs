@@ -6,7 +6,7 @@
 
 use serde_json::{json, Value};
 
-use super::filters::{CycleRow, Trace};
+use super::filters::{CycleRow, PlaceRow, Trace};
 use super::world::wrap;
 use echoloc::localize::Mode;
 
@@ -48,6 +48,41 @@ fn converged(r: &CycleRow) -> bool {
     r.mode == Mode::Tracking && error(r).is_some_and(|(p, h)| p <= CONVERGED_M && h <= CONVERGED_DEG)
 }
 
+/// The places the cycle before row `i` (at that cycle's end; the truth at
+/// its last firing): the living place nearest the truth and the one that
+/// leads (the largest smallest lead), each with how far off it is, its
+/// position's larger σ, its smallest lead over the null and every other
+/// and its evidence; null without the place test's places or a truth.
+fn places_before(t: &Trace, i: usize) -> Value {
+    let before = i.checked_sub(1).and_then(|b| t.cycle_places.iter().rev().find(|(c, _)| *c == b));
+    let (Some((b, places)), Some(truth)) = (before, i.checked_sub(1).and_then(|b| t.cycles.get(b)?.truth)) else {
+        return Value::Null;
+    };
+    let off = |p: &[f32; 3]| {
+        let (dx, dy) = (f64::from(p[0]) - truth[0], f64::from(p[1]) - truth[1]);
+        (dx.hypot(dy), wrap(f64::from(p[2]) - truth[2]).to_degrees().abs())
+    };
+    let say = |p: &PlaceRow| {
+        let (m, deg) = off(&p.pose);
+        // The larger eigenvalue of the position covariance [[a, b], [b, d]].
+        let [a, b, d] = p.covariance.map(f64::from);
+        let big = 0.5 * (a + d) + (0.25 * (a - d) * (a - d) + b * b).sqrt();
+        json!({
+            "error_m": round4(m),
+            "heading_deg": round4(deg),
+            "sigma_m": round4(big.max(0.0).sqrt()),
+            "margin_nats": round4(f64::from(p.margin)),
+            "evidence_nats": round4(f64::from(p.evidence)),
+        })
+    };
+    let nearest = places.iter().min_by(|a, c| off(&a.pose).0.total_cmp(&off(&c.pose).0));
+    let leader = places.iter().max_by(|a, c| a.margin.total_cmp(&c.margin));
+    match (nearest, leader) {
+        (Some(n), Some(l)) => json!({"cycle": b, "nearest": say(n), "leader": say(l)}),
+        _ => Value::Null,
+    }
+}
+
 /// The `localization` object of the JSON report; `kidnaps` are the
 /// simulator's (time s), none for a log.
 pub fn report(t: &Trace, kidnaps: &[f64]) -> Value {
@@ -66,15 +101,21 @@ pub fn report(t: &Trace, kidnaps: &[f64]) -> Value {
     // What the search knew when it handed off: the places alive and the
     // lead it handed off on (with the place test, the winner's smallest
     // lead over the null and every other), and how far off it was.
-    let standing: Vec<Value> = handoffs
+    // And the places the cycle before, the one nearest the truth and the
+    // leader: a wrong hand-off with the truth's place alive and trailing is
+    // the measurement model's doing; with none near it, the proposals'.
+    let standing: Vec<Value> = rows
         .iter()
-        .map(|r| {
+        .enumerate()
+        .filter(|(_, r)| r.handoff)
+        .map(|(i, r)| {
             json!({
                 "time_s": round4(r.time_s),
                 "distance_m": round4(r.distance_m),
                 "places_alive": r.hypotheses,
                 "lead_nats": round4(f64::from(r.lead)),
                 "error_m": error(r).map(|e| round4(e.0)),
+                "places_before": places_before(t, i),
             })
         })
         .collect();
@@ -227,5 +268,66 @@ pub fn parse_kidnap(s: &str) -> Result<super::world::Kidnap, String> {
         }
         [_, _, _] => Err(format!("--kidnap {s:?}: T_s must be after 0, every number finite")),
         _ => Err(bad()),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn row(handoff: bool, truth: Option<[f64; 3]>) -> CycleRow {
+        CycleRow {
+            time_s: 0.0,
+            mode: if handoff { Mode::Tracking } else { Mode::Searching },
+            state: [0.0; 3],
+            covariance: [[0.0; 3]; 3],
+            truth,
+            handoff,
+            woke: false,
+            calmed: false,
+            particles: 0,
+            held: 0,
+            lead: 0.0,
+            behind: 0.0,
+            cluster: None,
+            rival: None,
+            hypotheses: 2,
+            cluster_weight: 0.0,
+            distance_m: 0.0,
+        }
+    }
+
+    fn place(pose: [f32; 3], margin: f32) -> PlaceRow {
+        PlaceRow { pose, covariance: [0.01, 0.0, 0.01], evidence: margin + 1.0, margin, cycles: 3 }
+    }
+
+    /// The places the cycle before a hand-off, by hand: the truth's place
+    /// 0.5 m off (a 3-4-5 triangle), 0.1 rad (5.7296°) turned, σ 0.3 m
+    /// along its larger axis (covariance [[0.05, 0.04], [0.04, 0.05]]:
+    /// eigenvalues 0.09 and 0.01), trailing by 5 nats, while a place 12 m
+    /// away leads by 160.
+    #[test]
+    fn a_hand_off_says_where_the_truths_place_stood() {
+        let mut t = Trace::default();
+        t.cycles = vec![row(false, Some([1.0, 2.0, 0.0])), row(true, Some([1.1, 2.0, 0.0]))];
+        let mut near = place([1.3, 2.4, 0.1], -5.0);
+        near.covariance = [0.05, 0.04, 0.05];
+        t.cycle_places = vec![(0, vec![place([13.0, 2.0, 0.0], 160.0), near])];
+        let v = places_before(&t, 1);
+        assert_eq!(v["cycle"], 0);
+        let n = &v["nearest"];
+        assert_eq!((&n["error_m"], &n["heading_deg"], &n["sigma_m"]), (&json!(0.5), &json!(5.7296), &json!(0.3)));
+        assert_eq!((&n["margin_nats"], &n["evidence_nats"]), (&json!(-5.0), &json!(-4.0)));
+        let l = &v["leader"];
+        assert_eq!((&l["error_m"], &l["heading_deg"], &l["sigma_m"]), (&json!(12.0), &json!(0.0), &json!(0.1)));
+        assert_eq!(l["margin_nats"], 160.0);
+        // No places the cycle before (the first cycle, or places only on an
+        // earlier one), or no truth: nothing to say.
+        assert_eq!(places_before(&t, 0), Value::Null);
+        t.cycle_places[0].0 = 5;
+        assert_eq!(places_before(&t, 1), Value::Null);
+        t.cycle_places[0].0 = 0;
+        t.cycles[0].truth = None;
+        assert_eq!(places_before(&t, 1), Value::Null);
     }
 }
