@@ -308,11 +308,13 @@ mod tests {
     /// away leads by 160.
     #[test]
     fn a_hand_off_says_where_the_truths_place_stood() {
-        let mut t = Trace::default();
-        t.cycles = vec![row(false, Some([1.0, 2.0, 0.0])), row(true, Some([1.1, 2.0, 0.0]))];
         let mut near = place([1.3, 2.4, 0.1], -5.0);
         near.covariance = [0.05, 0.04, 0.05];
-        t.cycle_places = vec![(0, vec![place([13.0, 2.0, 0.0], 160.0), near])];
+        let mut t = Trace {
+            cycles: vec![row(false, Some([1.0, 2.0, 0.0])), row(true, Some([1.1, 2.0, 0.0]))],
+            cycle_places: vec![(0, vec![place([13.0, 2.0, 0.0], 160.0), near])],
+            ..Trace::default()
+        };
         let v = places_before(&t, 1);
         assert_eq!(v["cycle"], 0);
         let n = &v["nearest"];
