@@ -19,11 +19,15 @@ pub const CONVERGED_DEG: f64 = 10.0;
 /// χ² with 2 degrees of freedom at 99 %: the position's 99 % ellipse.
 pub const CHI2_2_99: f64 = 9.210_340_371_976_184;
 
+/// A pose's errors against the truth `t`: position m, heading degrees.
+fn pose_error(p: &[f32; 3], t: &[f64; 3]) -> (f64, f64) {
+    let e = [f64::from(p[0]) - t[0], f64::from(p[1]) - t[1], wrap(f64::from(p[2]) - t[2])];
+    (e[0].hypot(e[1]), e[2].to_degrees().abs())
+}
+
 /// A row's errors against its truth: position m, heading degrees.
 fn error(r: &CycleRow) -> Option<(f64, f64)> {
-    let t = r.truth?;
-    let e = [f64::from(r.state[0]) - t[0], f64::from(r.state[1]) - t[1], wrap(f64::from(r.state[2]) - t[2])];
-    Some((e[0].hypot(e[1]), e[2].to_degrees().abs()))
+    Some(pose_error(&r.state, &r.truth?))
 }
 
 /// Whether the true position lies inside the row's 99 % position ellipse.
@@ -54,14 +58,12 @@ fn converged(r: &CycleRow) -> bool {
 /// position's larger σ, its smallest lead over the null and every other
 /// and its evidence; null without the place test's places or a truth.
 fn places_before(t: &Trace, i: usize) -> Value {
-    let before = i.checked_sub(1).and_then(|b| t.cycle_places.iter().rev().find(|(c, _)| *c == b));
-    let (Some((b, places)), Some(truth)) = (before, i.checked_sub(1).and_then(|b| t.cycles.get(b)?.truth)) else {
+    let Some(b) = i.checked_sub(1) else { return Value::Null };
+    let places = t.cycle_places.iter().rev().find(|(c, _)| *c == b).map(|(_, p)| p);
+    let (Some(places), Some(truth)) = (places, t.cycles.get(b).and_then(|r| r.truth)) else {
         return Value::Null;
     };
-    let off = |p: &[f32; 3]| {
-        let (dx, dy) = (f64::from(p[0]) - truth[0], f64::from(p[1]) - truth[1]);
-        (dx.hypot(dy), wrap(f64::from(p[2]) - truth[2]).to_degrees().abs())
-    };
+    let off = |p: &[f32; 3]| pose_error(p, &truth);
     let say = |p: &PlaceRow| {
         let (m, deg) = off(&p.pose);
         // The larger eigenvalue of the position covariance [[a, b], [b, d]].
@@ -91,10 +93,11 @@ pub fn report(t: &Trace, kidnaps: &[f64]) -> Value {
     let count = |m: Mode| rows.iter().filter(|r| r.mode == m).count();
     let start_time = t.times.first().copied().unwrap_or(0.0);
     let first = rows.iter().find(|r| converged(r));
-    let handoffs: Vec<&CycleRow> = rows.iter().filter(|r| r.handoff).collect();
+    // The hand-offs with their rows' indices (the places before them).
+    let handoffs: Vec<(usize, &CycleRow)> = rows.iter().enumerate().filter(|(_, r)| r.handoff).collect();
     let wrong: Vec<Value> = handoffs
         .iter()
-        .filter_map(|r| {
+        .filter_map(|&(_, r)| {
             error(r).filter(|e| e.0 > OFF_M).map(|e| json!({"time_s": round4(r.time_s), "error_m": round4(e.0)}))
         })
         .collect();
@@ -104,11 +107,9 @@ pub fn report(t: &Trace, kidnaps: &[f64]) -> Value {
     // And the places the cycle before, the one nearest the truth and the
     // leader: a wrong hand-off with the truth's place alive and trailing is
     // the measurement model's doing; with none near it, the proposals'.
-    let standing: Vec<Value> = rows
+    let standing: Vec<Value> = handoffs
         .iter()
-        .enumerate()
-        .filter(|(_, r)| r.handoff)
-        .map(|(i, r)| {
+        .map(|&(i, r)| {
             json!({
                 "time_s": round4(r.time_s),
                 "distance_m": round4(r.distance_m),
