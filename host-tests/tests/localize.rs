@@ -15,8 +15,8 @@
 
 use echoloc::credence::net::CredenceNet;
 use echoloc::localize::{
-    kld_bound, BeamModel, FieldLookup, LocalizeError, Localizer, LocalizerConfig, McConfig, Mode, ParticleSet,
-    PlaceTest, Rng, Sensed, Start,
+    kld_bound, BeamModel, FieldLookup, LocalizeError, Localizer, LocalizerConfig, McConfig, Mode, ParticleSet, Place,
+    PlaceProposal as Proposal, PlaceTest, Places, Rng, Sensed, Start, Tracking,
 };
 use echoloc::map::{BlobError, Expected, FieldView, MapSource, MapView};
 use echoloc::predict::{predict_mount, Mount, Pose, PredictParams, PIONEER16};
@@ -175,6 +175,46 @@ fn weighing_equals_a_brute_force() {
     // And the truth is the heaviest particle by far.
     let (i, _) = got.iter().enumerate().max_by(|a, b| a.1.total_cmp(b.1)).unwrap();
     assert_eq!(i, poses.len() - 1);
+}
+
+/// `Places::propose_beside` on the depot's readings taken at the truth: a
+/// proposal at the truth beside a tight place half a metre off joins as its
+/// own place; one half a metre off beside a place at the truth, one within a
+/// merge of a place, and one beside the spared (tracked) place are held.
+#[test]
+fn a_better_proposal_beside_a_place_joins() {
+    let depot = Depot::load();
+    let map = depot.view();
+    let lookup = FieldLookup::new(map.field());
+    let ekf = EkfConfig::DEFAULT;
+    let t = Tracking { lookup: &lookup, beam: &BeamModel::DEFAULT, ekf: &ekf, clip: 2.0, hit_share: 0.5 };
+    let truth = [12.3f32, 5.4, 0.7];
+    let off = [12.8f32, 5.4, 0.7];
+    let sensed: Vec<Sensed> = readings(&map, truth).into_iter().map(|(_, s)| s).collect();
+    let nulls = vec![-3.0f32; sensed.len()];
+    let tight = |p: [f32; 3]| Place::new(p, [0.03, 0.03, 0.01], &ekf).unwrap();
+    let wide = |p: [f32; 3]| Place::new(p, [0.15, 0.15, 0.05], &ekf).unwrap();
+    let bank_at = |p: [f32; 3]| {
+        let mut bank = Places::<4>::new(150.0).unwrap();
+        assert_eq!(bank.propose(tight(p)), Proposal::Joined(0));
+        bank
+    };
+    // The truth beside a place 0.5 m off: joins.
+    let mut bank = bank_at(off);
+    assert_eq!(bank.propose_beside(wide(truth), None, &sensed, &nulls, &t), Proposal::Joined(1));
+    assert_eq!(bank.living()[1].pose(), truth);
+    // Plain `propose` holds the same proposal.
+    let mut bank = bank_at(off);
+    assert_eq!(bank.propose(wide(truth)), Proposal::Held(0));
+    // Spared, the place 0.5 m off holds the truth out.
+    assert_eq!(bank.propose_beside(wide(truth), Some(0), &sensed, &nulls, &t), Proposal::Held(0));
+    // 0.5 m off beside the truth: scores worse, held.
+    let mut bank = bank_at(truth);
+    assert_eq!(bank.propose_beside(wide(off), None, &sensed, &nulls, &t), Proposal::Held(0));
+    // Within a merge (0.1 m) of the place 0.5 m off, though nearer the truth: held.
+    let mut bank = bank_at(off);
+    assert_eq!(bank.propose_beside(wide([12.7, 5.4, 0.7]), None, &sensed, &nulls, &t), Proposal::Held(0));
+    assert_eq!(bank.living().len(), 1);
 }
 
 #[test]

@@ -135,6 +135,12 @@ pub struct SimulateArgs {
     /// measure what it does.
     #[arg(long = "place-calm-behind", value_name = "X", requires = "place_test", value_parser = parse_nats)]
     place_calm_behind: Option<f32>,
+    /// With --place-test: a proposal beside a living place (within a metre
+    /// and 20°, farther than a merge) that scores the cycle better joins as
+    /// a place of its own (`PlaceTest::join_beside`), to measure what it
+    /// does.
+    #[arg(long = "place-join-beside", requires = "place_test")]
+    place_join_beside: bool,
     /// A reading the verdict does not confirm enters the EKF with its
     /// variance this many times larger (`EkfConfig::unconfirmed_variance_scale`,
     /// issue #49 item 3; default 16, measured in docs/real-buildings.md;
@@ -230,6 +236,7 @@ pub fn simulate_cmd(a: &SimulateArgs) -> Result<String, LabError> {
         rival_nodes: a.place_rivals.unwrap_or(0),
         hit_share: a.place_hit_share,
         calm_behind: a.place_calm_behind,
+        join_beside: a.place_join_beside,
         unconfirmed_variance_scale: a.unconfirmed_variance_scale,
     };
     if let Some(scans) = &scans {

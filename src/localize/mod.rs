@@ -81,7 +81,7 @@ pub use measure::{Measure, Sensed};
 pub use null::{NullError, NullModel};
 pub use particles::{kld_bound, Cluster, McConfig, MotionNoise, ParticleError, ParticleSet, Weighed};
 pub use place::{Place, PlaceCycle, PlaceError, Tracking};
-pub use places::{Places, PlacesError, Standing};
+pub use places::{Places, PlacesError, Proposal as PlaceProposal, Standing};
 pub use rng::Rng;
 pub use scan::{Candidate, ScanConfig, Sweep};
 pub use sprt::{Decision, Sprt, SprtError};

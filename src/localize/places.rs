@@ -321,6 +321,35 @@ impl<const K: usize> Places<K> {
         self.join(place, spare, |weakest| weakest < e).map_or(Proposal::Refused, Proposal::Joined)
     }
 
+    /// [`Places::propose_sparing`], but a proposal beside a living place
+    /// (not `spare`), within a metre and 20° of it yet farther than a
+    /// merge, that scores `sensed` better than it (both scored from where
+    /// they stand, on copies: [`Place::cycle`] without motion) joins as a
+    /// place of its own instead of being held: a place strayed beside the
+    /// truth no longer keeps the truth out, and the newcomer is weighed
+    /// against every other over the cycles both live.
+    pub fn propose_beside(
+        &mut self,
+        place: Place,
+        spare: Option<usize>,
+        sensed: &[Sensed],
+        null: &[f32],
+        t: &Tracking<'_>,
+    ) -> Proposal {
+        let Some(i) = self.nearest(&place.pose()) else { return self.propose_sparing(place, spare) };
+        let Some(q) = self.living.get(i).copied() else { return Proposal::Held(i) };
+        if Some(i) == spare || within(&q.pose(), &place.pose(), MERGE_M, MERGE_RAD) {
+            return Proposal::Held(i);
+        }
+        let still = Motion { dx: 0.0, dy: 0.0, dphi: 0.0 };
+        let score = |mut p: Place| p.cycle(sensed, null, &still, t).map_or(f32::NEG_INFINITY, |c| c.evidence);
+        if score(place) <= score(q) {
+            return Proposal::Held(i);
+        }
+        let e = place.evidence();
+        self.join(place, spare, |weakest| weakest < e).map_or(Proposal::Refused, Proposal::Joined)
+    }
+
     /// The tracked place (issue #48 item 4): the living place nearest
     /// `place` within a metre and 20° follows it (its pose and covariance,
     /// its own evidence and record kept); with none, `place` joins, in the

@@ -399,6 +399,8 @@ pub struct Switches {
     pub hit_share: Option<f32>,
     /// With the place test, `PlaceTest::calm_behind`; `None`: the default.
     pub calm_behind: Option<f32>,
+    /// With the place test, `PlaceTest::join_beside`.
+    pub join_beside: bool,
     /// `EkfConfig::unconfirmed_variance_scale`; `None`: the default.
     pub unconfirmed_variance_scale: Option<f32>,
 }
@@ -417,6 +419,7 @@ impl Switches {
         rival_nodes: 0,
         hit_share: None,
         calm_behind: None,
+        join_beside: false,
         unconfirmed_variance_scale: None,
     };
 }
@@ -543,6 +546,7 @@ fn run_with<M: MapSource, const N: usize>(
             rival_nodes: start.switches.rival_nodes,
             hit_share: start.switches.hit_share.unwrap_or(PlaceTest::DEFAULT.hit_share),
             calm_behind: start.switches.calm_behind.unwrap_or(PlaceTest::DEFAULT.calm_behind),
+            join_beside: start.switches.join_beside,
             ..PlaceTest::DEFAULT
         }),
         ..d

@@ -135,6 +135,12 @@ pub struct PlaceTest {
     /// cycles the EKF trails the null by at most this, nats (its CUSUM,
     /// the report's `behind`); at least 0 and below the bound.
     pub calm_behind: f32,
+    /// A proposal within a metre and 20° of a living place (not the
+    /// tracked one), farther than a merge, that scores the cycle's readings
+    /// better than it joins as a place of its own instead of being held
+    /// ([`crate::localize::Places::propose_beside`]). Off by default:
+    /// measured in docs/localization.md (*a proposal beside a place*).
+    pub join_beside: bool,
 }
 
 /// The places the test weighs at once.
@@ -156,6 +162,7 @@ impl PlaceTest {
         null_memory: 400.0,
         rival_nodes: 0,
         calm_behind: 0.0,
+        join_beside: false,
     };
 }
 

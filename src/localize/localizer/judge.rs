@@ -39,6 +39,10 @@ use super::error::LocalizeError;
 use super::monitor::back_to_start;
 use crate::referencing::{Ekf, EkfConfig, Motion};
 
+/// A cycle's readings, the null's score of each and the shared model: what
+/// a proposal is scored on before it joins beside a place.
+type Scored<'a> = (&'a [Sensed], &'a [f32], Tracking<'a>);
+
 /// A place's refusal as the localizer's.
 fn place_error(e: PlaceError) -> LocalizeError {
     match e {
@@ -158,11 +162,21 @@ impl Judge {
     /// The sweep's best places proposed (σ `sweep_sigma`; one refused
     /// silently when not finite), none given the tracked place's slot,
     /// `spare`.
-    fn propose_sweep(&mut self, test: &PlaceTest, candidates: &[Candidate], ekf: &EkfConfig, spare: Option<usize>) {
+    fn propose_sweep(&mut self, test: &PlaceTest, candidates: &[Candidate], spare: Option<usize>, scored: &Scored<'_>) {
         for cand in candidates.iter().take(usize::from(test.proposals)) {
-            if let Ok(place) = Place::new(cand.pose, test.sweep_sigma, ekf) {
-                self.places.propose_sparing(place, spare);
+            if let Ok(place) = Place::new(cand.pose, test.sweep_sigma, scored.2.ekf) {
+                self.propose(test, place, spare, scored);
             }
+        }
+    }
+
+    /// `place` proposed; with `test.join_beside` it joins beside a living
+    /// place it scores the cycle better than.
+    fn propose(&mut self, test: &PlaceTest, place: Place, spare: Option<usize>, (sensed, nulls, t): &Scored<'_>) {
+        if test.join_beside {
+            self.places.propose_beside(place, spare, sensed, nulls, t);
+        } else {
+            self.places.propose_sparing(place, spare);
         }
     }
 
@@ -242,7 +256,7 @@ impl Judge {
             if anchored {
                 spare = self.places.anchor(&place);
             } else {
-                self.places.propose(place);
+                self.propose(test, place, None, &(sensed, &nulls, t));
             }
         }
         if let Some(c) = cluster.filter(|c| c.weight >= test.cluster_weight) {
@@ -253,10 +267,10 @@ impl Judge {
                 *s = crate::f32math::sqrt(v.max(f * f));
             }
             if let Ok(place) = Place::new(c.mean, sigma, ekf) {
-                self.places.propose(place);
+                self.propose(test, place, spare, &(sensed, &nulls, t));
             }
         }
-        self.propose_sweep(test, candidates, ekf, spare);
+        self.propose_sweep(test, candidates, spare, &(sensed, &nulls, t));
         self.places.cycle(sensed, &nulls, offset, &t).map_err(place_error)
     }
 

@@ -26,7 +26,7 @@ use core::hint::black_box;
 use cortex_m_rt::entry;
 use cortex_m_semihosting::hprintln;
 use echoloc::localize::place::{Place, PlaceCycle, Tracking};
-use echoloc::localize::places::{Places, Standing};
+use echoloc::localize::places::{Places, Proposal, Standing};
 use echoloc::localize::scan::{Candidate, ScanConfig, Sweep, SCAN_KEEP};
 use echoloc::localize::{BeamModel, FieldLookup, NullModel, Sensed};
 use echoloc::map::{Aligned, Expected, MapView};
@@ -65,6 +65,11 @@ fn sweep_call(
 #[inline(never)]
 fn bank_call(b: &mut Places<PLACES>, sensed: &[Sensed], null: &[f32], u: &Motion, t: &Tracking<'_>) -> Standing {
     b.cycle(sensed, null, u, t).unwrap_or(Standing::Searching)
+}
+
+#[inline(never)]
+fn beside_call(b: &mut Places<PLACES>, p: Place, sensed: &[Sensed], null: &[f32], t: &Tracking<'_>) -> Proposal {
+    b.propose_beside(p, None, sensed, null, t)
 }
 
 #[entry]
@@ -191,6 +196,36 @@ fn main() -> ! {
     hprintln!("metric places8_state_bytes {}", core::mem::size_of::<Places<PLACES>>());
     if bank.living().len() != PLACES {
         hprintln!("FAIL: the bank lost places at a bound of 10⁹ nats");
+        ok = false;
+    }
+
+    // A proposal beside a living place (`PlaceTest::join_beside`): half a
+    // metre from the first place, on its readings, so both are scored and
+    // it is held (the most a proposal costs; at most 5 a cycle).
+    let q = bank.living().first().map_or([0.0; 3], Place::pose);
+    let Ok(beside) = Place::new([q[0] + 0.5, q[1], q[2]], [0.15, 0.15, 0.05], &cfg) else { exit(false) };
+    let mut held = 0u32;
+    let t0 = ticks(&syst);
+    for _ in 0..N {
+        let r = beside_call(black_box(&mut bank), black_box(beside), black_box(&sensed[0]), &null_scores, &t);
+        held += u32::from(matches!(r, Proposal::Held(_)));
+    }
+    let with = elapsed(t0, ticks(&syst));
+    let t0 = ticks(&syst);
+    for _ in 0..N {
+        black_box(&mut bank);
+        black_box(beside);
+        black_box(&sensed[0]);
+    }
+    let base = elapsed(t0, ticks(&syst));
+    hprintln!(
+        "metric beside_proposal_insns {} (scored against its neighbour; held {} of {})",
+        with.saturating_sub(base) * per_tick / N,
+        held,
+        N
+    );
+    if held != N {
+        hprintln!("FAIL: a proposal half a metre off its place's truth was not held");
         ok = false;
     }
 
